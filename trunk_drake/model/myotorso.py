@@ -1,0 +1,163 @@
+"""Read MyoTorso (myo-sim) into a ModelSpec.
+
+MyoTorso is compiled once with MuJoCo (myo-sim ships it as an MJCF spec) and its numbers are
+copied into plain dataclasses; MuJoCo is not used afterwards. Muscle Hill parameters are not
+taken from MyoTorso (its MuJoCo muscle parameters are tuned to MuJoCo's own curve): they are
+derived in `trunk_drake.model.architecture`.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from trunk_drake.model.spec import (
+    BodySpec,
+    CouplingSpec,
+    JointSpec,
+    ModelSpec,
+    MuscleSpec,
+    PathElement,
+    SiteSpec,
+    WrapSpec,
+)
+
+_JOINT_KINDS = {2: "slide", 3: "hinge"}  # mjJNT_SLIDE, mjJNT_HINGE
+_WRAP_KINDS = {2: "sphere", 5: "cylinder"}  # mjGEOM_SPHERE, mjGEOM_CYLINDER
+_WRAP_SITE, _WRAP_SPHERE, _WRAP_CYLINDER = 3, 4, 5  # mjtWrap
+_EQ_JOINT = 2  # mjEQ_JOINT
+
+
+def compile_myotorso():
+    """The compiled MuJoCo model of MyoTorso (used here and by the MuJoCo oracle tests)."""
+    from myo_sim.build.compose import build_spec
+
+    return build_spec("myotorso").compile()
+
+
+def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    w, x, y, z = q / np.linalg.norm(q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _name(m, objtype, i) -> str:
+    import mujoco
+
+    return mujoco.mj_id2name(m, objtype, i)
+
+
+@lru_cache(maxsize=1)
+def read_myotorso() -> ModelSpec:
+    """MyoTorso geometry, inertia, joints, path sites, wraps and muscles (without Hill lengths)."""
+    import mujoco
+    import myo_sim  # noqa: F401  (version for provenance)
+    from importlib.metadata import version
+
+    m = compile_myotorso()
+    ot = mujoco.mjtObj
+    body_names = [_name(m, ot.mjOBJ_BODY, i) for i in range(m.nbody)]
+
+    bodies = []
+    for i in range(1, m.nbody):
+        r = _quat_to_matrix(m.body_iquat[i])
+        parent = int(m.body_parentid[i])
+        bodies.append(
+            BodySpec(
+                name=body_names[i],
+                parent=None if parent == 0 else body_names[parent],
+                pos=m.body_pos[i].copy(),
+                quat=m.body_quat[i].copy(),
+                mass=float(m.body_mass[i]),
+                com=m.body_ipos[i].copy(),
+                inertia=r @ np.diag(m.body_inertia[i]) @ r.T,
+            )
+        )
+
+    joints = []
+    for j in range(m.njnt):
+        kind = _JOINT_KINDS.get(int(m.jnt_type[j]))
+        if kind is None:
+            raise ValueError(f"MyoTorso joint {_name(m, ot.mjOBJ_JOINT, j)} has unsupported type {m.jnt_type[j]}")
+        joints.append(
+            JointSpec(
+                name=_name(m, ot.mjOBJ_JOINT, j),
+                body=body_names[m.jnt_bodyid[j]],
+                kind=kind,
+                axis=m.jnt_axis[j].copy(),
+                anchor=m.jnt_pos[j].copy(),
+                range=(float(m.jnt_range[j, 0]), float(m.jnt_range[j, 1])),
+            )
+        )
+
+    sites = tuple(
+        SiteSpec(_name(m, ot.mjOBJ_SITE, s), body_names[m.site_bodyid[s]], m.site_pos[s].copy())
+        for s in range(m.nsite)
+    )
+
+    wrap_index: dict[int, int] = {}
+    wraps: list[WrapSpec] = []
+    muscles = []
+    for a in range(m.nu):
+        tendon = int(m.actuator_trnid[a, 0])
+        path = []
+        adr, num = int(m.tendon_adr[tendon]), int(m.tendon_num[tendon])
+        for k in range(adr, adr + num):
+            wtype, obj = int(m.wrap_type[k]), int(m.wrap_objid[k])
+            if wtype == _WRAP_SITE:
+                path.append(PathElement("site", obj))
+            elif wtype in (_WRAP_SPHERE, _WRAP_CYLINDER):
+                if obj not in wrap_index:
+                    wrap_index[obj] = len(wraps)
+                    wraps.append(
+                        WrapSpec(
+                            name=_name(m, ot.mjOBJ_GEOM, obj),
+                            body=body_names[m.geom_bodyid[obj]],
+                            kind=_WRAP_KINDS[int(m.geom_type[obj])],
+                            radius=float(m.geom_size[obj, 0]),
+                            pos=m.geom_pos[obj].copy(),
+                            quat=m.geom_quat[obj].copy(),
+                        )
+                    )
+                path.append(PathElement("wrap", wrap_index[obj], int(round(m.wrap_prm[k]))))
+            else:
+                raise ValueError(f"muscle {_name(m, ot.mjOBJ_ACTUATOR, a)}: unsupported wrap type {wtype}")
+        muscles.append(
+            MuscleSpec(
+                name=_name(m, ot.mjOBJ_ACTUATOR, a),
+                path=tuple(path),
+                max_isometric_force=float(m.actuator_gainprm[a, 2]),
+            )
+        )
+
+    couplings = []
+    for e in range(m.neq):
+        if int(m.eq_type[e]) != _EQ_JOINT:
+            continue
+        driver = int(m.eq_obj2id[e])
+        couplings.append(
+            CouplingSpec(
+                name=_name(m, ot.mjOBJ_EQUALITY, e),
+                joint=_name(m, ot.mjOBJ_JOINT, int(m.eq_obj1id[e])),
+                driver=None if driver < 0 else _name(m, ot.mjOBJ_JOINT, driver),
+                coef=tuple(float(c) for c in m.eq_data[e, :5]),
+            )
+        )
+
+    return ModelSpec(
+        name="myotorso",
+        bodies=tuple(bodies),
+        joints=tuple(joints),
+        sites=sites,
+        wraps=tuple(wraps),
+        muscles=tuple(muscles),
+        couplings=tuple(couplings),
+        gravity=m.opt.gravity.copy(),
+        source=f"myo-sim {version('myo-sim')} myotorso (MuJoCo {mujoco.__version__})",
+    )
