@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import sparse
 
 from trunk_drake.model.spec import ModelSpec
 
@@ -46,62 +47,65 @@ def _quat_matrix(q: np.ndarray) -> np.ndarray:
 
 
 def _normalize(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    n = np.sqrt(np.einsum("...i,...i->...", v, v))
+    n = np.sqrt((v * v).sum(axis=-1))
     return v / np.where(n < MINVAL, 1.0, n)[..., None], n
 
 
-def _segments_intersect(p1, p2, p3, p4) -> np.ndarray:
-    """MuJoCo's is_intersect for 2-D segments p1-p2 and p3-p4, vectorised (arrays (..., 2))."""
-    det = (p4[..., 1] - p3[..., 1]) * (p2[..., 0] - p1[..., 0]) - (p4[..., 0] - p3[..., 0]) * (p2[..., 1] - p1[..., 1])
+def _segments_intersect(p1x, p1y, p2x, p2y, p3x, p3y, p4x, p4y) -> np.ndarray:
+    """MuJoCo's is_intersect for 2-D segments p1-p2 and p3-p4, vectorised over components."""
+    det = (p4y - p3y) * (p2x - p1x) - (p4x - p3x) * (p2y - p1y)
     ok = np.abs(det) >= MINVAL
     sdet = np.where(ok, det, 1.0)
-    a = ((p4[..., 0] - p3[..., 0]) * (p1[..., 1] - p3[..., 1]) - (p4[..., 1] - p3[..., 1]) * (p1[..., 0] - p3[..., 0])) / sdet
-    b = ((p2[..., 0] - p1[..., 0]) * (p1[..., 1] - p3[..., 1]) - (p2[..., 1] - p1[..., 1]) * (p1[..., 0] - p3[..., 0])) / sdet
+    a = ((p4x - p3x) * (p1y - p3y) - (p4y - p3y) * (p1x - p3x)) / sdet
+    b = ((p2x - p1x) * (p1y - p3y) - (p2y - p1y) * (p1x - p3x)) / sdet
     return ok & (a >= 0) & (a <= 1) & (b >= 0) & (b <= 1)
 
 
 def _wrap_circle(d0, d1, sd, has_side, rad):
     """2-D wrap of segment d0-d1 around a circle of radius rad at the origin (MuJoCo wrap_circle).
 
-    Returns tangent points (n, 2) x 2, arc length (n,) and a mask of wrapped cases.
+    Returns tangent points (n, 2) x 2, arc length (n,) and a mask of wrapped cases. Both
+    candidate solutions are computed at once (leading axis of length 2).
     """
-    sqlen0 = np.einsum("ij,ij->i", d0, d0)
-    sqlen1 = np.einsum("ij,ij->i", d1, d1)
+    x0, y0, x1, y1 = d0[:, 0], d0[:, 1], d1[:, 0], d1[:, 1]
+    sqlen0 = x0 * x0 + y0 * y0
+    sqlen1 = x1 * x1 + y1 * y1
     sqrad = rad * rad
-    dif = d1 - d0
-    dd = np.einsum("ij,ij->i", dif, dif)
+    dx, dy = x1 - x0, y1 - y0
+    dd = dx * dx + dy * dy
     valid = (sqlen0 >= sqrad) & (sqlen1 >= sqrad) & (rad >= MINVAL) & (dd >= MINVAL)
-    a = np.clip(-np.einsum("ij,ij->i", dif, d0) / np.where(dd < MINVAL, 1.0, dd), 0.0, 1.0)
-    near = a[:, None] * dif + d0
-    clear = (np.einsum("ij,ij->i", near, near) > sqrad) & (~has_side | (np.einsum("ij,ij->i", sd, near) >= 0))
+    a = np.clip(-(dx * x0 + dy * y0) / np.where(dd < MINVAL, 1.0, dd), 0.0, 1.0)
+    nx, ny = a * dx + x0, a * dy + y0
+    clear = (nx * nx + ny * ny > sqrad) & (~has_side | (sd[:, 0] * nx + sd[:, 1] * ny >= 0))
     valid &= ~clear
 
-    sqrt0 = np.sqrt(np.maximum(sqlen0 - sqrad, 0.0))
-    sqrt1 = np.sqrt(np.maximum(sqlen1 - sqrad, 0.0))
-    s0 = np.where(valid, sqlen0, 1.0)
-    s1 = np.where(valid, sqlen1, 1.0)
-    sols, goods = [], []
-    for sgn in (1.0, -1.0):
-        t0 = np.stack([(d0[:, 0] * sqrad + sgn * rad * d0[:, 1] * sqrt0) / s0, (d0[:, 1] * sqrad - sgn * rad * d0[:, 0] * sqrt0) / s0], axis=1)
-        t1 = np.stack([(d1[:, 0] * sqrad - sgn * rad * d1[:, 1] * sqrt1) / s1, (d1[:, 1] * sqrad + sgn * rad * d1[:, 0] * sqrt1) / s1], axis=1)
-        mid, _ = _normalize(t0 + t1)
-        diff = t0 - t1
-        good = np.where(has_side, np.einsum("ij,ij->i", mid, sd), -np.einsum("ij,ij->i", diff, diff))
-        good = np.where(_segments_intersect(d0, t0, d1, t1), -10000.0, good)
-        sols.append((t0, t1))
-        goods.append(good)
-    second = ~(goods[0] > goods[1])
-    t0 = np.where(second[:, None], sols[1][0], sols[0][0])
-    t1 = np.where(second[:, None], sols[1][1], sols[0][1])
-    valid &= ~_segments_intersect(d0, t0, d1, t1)
+    k0 = rad * np.sqrt(np.maximum(sqlen0 - sqrad, 0.0)) / np.where(valid, sqlen0, 1.0)
+    k1 = rad * np.sqrt(np.maximum(sqlen1 - sqrad, 0.0)) / np.where(valid, sqlen1, 1.0)
+    c0 = sqrad / np.where(valid, sqlen0, 1.0)
+    c1 = sqrad / np.where(valid, sqlen1, 1.0)
+    sgn = np.array([[1.0], [-1.0]])
+    t0x, t0y = x0 * c0 + sgn * k0 * y0, y0 * c0 - sgn * k0 * x0  # (2, n)
+    t1x, t1y = x1 * c1 - sgn * k1 * y1, y1 * c1 + sgn * k1 * x1
+    mx, my = t0x + t1x, t0y + t1y
+    mn = np.sqrt(mx * mx + my * my)
+    mn = np.where(mn < MINVAL, 1.0, mn)
+    ex, ey = t0x - t1x, t0y - t1y
+    good = np.where(has_side, (mx * sd[:, 0] + my * sd[:, 1]) / mn, -(ex * ex + ey * ey))
+    good = np.where(_segments_intersect(x0, y0, t0x, t0y, x1, y1, t1x, t1y), -10000.0, good)
+    second = ~(good[0] > good[1])
+    pick = second.astype(int)
+    cols = np.arange(len(rad))
+    t0x, t0y, t1x, t1y = t0x[pick, cols], t0y[pick, cols], t1x[pick, cols], t1y[pick, cols]
+    valid &= ~_segments_intersect(x0, y0, t0x, t0y, x1, y1, t1x, t1y)
 
-    n0, _ = _normalize(t0)
-    n1, _ = _normalize(t1)
-    angle = np.arccos(np.clip(np.einsum("ij,ij->i", n0, n1), -1.0, 1.0))
-    cross = t0[:, 1] * t1[:, 0] - t0[:, 0] * t1[:, 1]
+    n0 = np.sqrt(t0x * t0x + t0y * t0y)
+    n1 = np.sqrt(t1x * t1x + t1y * t1y)
+    cosang = (t0x * t1x + t0y * t1y) / np.where(n0 * n1 < MINVAL, 1.0, n0 * n1)
+    angle = np.arccos(np.clip(cosang, -1.0, 1.0))
+    cross = t0y * t1x - t0x * t1y
     flip = ((cross > 0) & second) | ((cross < 0) & ~second)
     angle = np.where(flip, 2 * np.pi - angle, angle)
-    return t0, t1, rad * angle, valid
+    return np.stack([t0x, t0y], axis=1), np.stack([t1x, t1y], axis=1), rad * angle, valid
 
 
 def _wrap_inside(d0, d1, rad):
@@ -168,10 +172,9 @@ def wrap_points(x0, x1, center, R, radius, cylinder, side, has_side):
     cylinder (n,) bool; side (n, 3) side-site positions (ignored where not has_side).
     Returns world tangent points t0, t1 (n, 3), wrapped length (n,), and the wrapped mask.
     """
-    p0 = np.einsum("nji,nj->ni", R, x0 - center)
-    p1 = np.einsum("nji,nj->ni", R, x1 - center)
+    p0, p1, s = np.einsum("nji,knj->kni", R, np.stack([x0, x1, side]) - center)  # local frame
     a0, n_p0 = _normalize(p0)
-    normal, nrm = _normalize(np.cross(p0, p1))
+    normal, nrm = _normalize(_cross(p0, p1))
     # sphere with p0 parallel to p1: MuJoCo picks another normal
     parallel = nrm < MINVAL
     if np.any(parallel & ~cylinder):
@@ -180,18 +183,12 @@ def wrap_points(x0, x1, center, R, radius, cylinder, side, has_side):
         idx = np.where((absa[:, 2] > absa[:, 0]) & (absa[:, 2] > absa[:, 1]), 2, idx)
         alt = np.ones_like(a0)
         alt[np.arange(len(idx)), idx] = 0.0
-        alt_normal, _ = _normalize(np.cross(a0, alt))
+        alt_normal, _ = _normalize(_cross(a0, alt))
         normal = np.where(parallel[:, None], alt_normal, normal)
-    a1, _ = _normalize(np.cross(normal, a0))
-    ex = np.broadcast_to(np.array([1.0, 0.0, 0.0]), a0.shape)
-    ey = np.broadcast_to(np.array([0.0, 1.0, 0.0]), a0.shape)
-    axis0 = np.where(cylinder[:, None], ex, a0)
-    axis1 = np.where(cylinder[:, None], ey, a1)
-
-    d0 = np.stack([np.einsum("ij,ij->i", p0, axis0), np.einsum("ij,ij->i", p0, axis1)], axis=1)
-    d1 = np.stack([np.einsum("ij,ij->i", p1, axis0), np.einsum("ij,ij->i", p1, axis1)], axis=1)
-    s = np.einsum("nji,nj->ni", R, side - center)
-    sd = np.stack([np.einsum("ij,ij->i", s, axis0), np.einsum("ij,ij->i", s, axis1)], axis=1)
+    a1, _ = _normalize(_cross(normal, a0))
+    # 2-D frame of the wrap plane: (axis0, axis1) rows; cylinders use local x, y
+    basis = np.where(cylinder[:, None, None], np.eye(3)[:2], np.stack([a0, a1], axis=1))  # (n, 2, 3)
+    d0, d1, sd = np.einsum("nij,knj->kni", basis, np.stack([p0, p1, s]))
     sd_dir, sd_norm = _normalize(sd)
     outside = sd_norm >= radius
     sd = np.where(outside[:, None], sd_dir * radius[:, None], 0.0)
@@ -203,8 +200,7 @@ def wrap_points(x0, x1, center, R, radius, cylinder, side, has_side):
         t0[inside], t1[inside], wlen[inside], valid[inside] = pin, pin, 0.0, vin
     valid &= (n_p0 >= MINVAL) & (np.linalg.norm(p1, axis=1) >= MINVAL)
 
-    r0 = axis0 * t0[:, :1] + axis1 * t0[:, 1:]
-    r1 = axis0 * t1[:, :1] + axis1 * t1[:, 1:]
+    r0, r1 = np.einsum("nij,kni->knj", basis, np.stack([t0, t1]))
     if np.any(cylinder):
         L0 = np.hypot(p0[:, 0] - r0[:, 0], p0[:, 1] - r0[:, 1])
         L1 = np.hypot(p1[:, 0] - r1[:, 0], p1[:, 1] - r1[:, 1])
@@ -214,8 +210,7 @@ def wrap_points(x0, x1, center, R, radius, cylinder, side, has_side):
         r0[:, 2] = np.where(cylinder, z0, r0[:, 2])
         r1[:, 2] = np.where(cylinder, z1, r1[:, 2])
         wlen = np.where(cylinder, np.hypot(wlen, z1 - z0), wlen)
-    w0 = np.einsum("nij,nj->ni", R, r0) + center
-    w1 = np.einsum("nij,nj->ni", R, r1) + center
+    w0, w1 = np.einsum("nij,knj->kni", R, np.stack([r0, r1])) + center
     return w0, w1, wlen, valid
 
 
@@ -223,8 +218,8 @@ class MusclePaths:
     """Vectorised path geometry of all muscles of a ModelSpec on a given set of bodies.
 
     `bodies` are the names of the bodies whose world poses are supplied to `compute`
-    (in that order); `coord_bodies[k]` lists, for coordinate k, the indices into `bodies`
-    that the coordinate moves.
+    (in that order); `coord_kinds[k]` is "hinge" or "slide" and `coord_moves[b, k]` is 1
+    where coordinate k moves body b.
     """
 
     def __init__(self, spec: ModelSpec, bodies: list[str], coord_kinds: list[str], coord_moves: np.ndarray):
@@ -274,46 +269,63 @@ class MusclePaths:
         self._wr_radius = np.array([g.radius for g in geoms], dtype=float)
         self._wr_cyl = np.array([g.kind == "cylinder" for g in geoms], dtype=bool)
 
+        # straight pieces in a fixed order: site->site hops, then per wrap hop
+        # site->tangent, tangent->site (used when wrapped) and site->site (when not)
+        sb, wb = self._site_body, self._wr_body
+        self._seg_start_body = np.concatenate([sb[self._st_a], sb[self._wr_a], wb, sb[self._wr_a]])
+        self._seg_end_body = np.concatenate([sb[self._st_b], wb, sb[self._wr_b], sb[self._wr_b]])
+        seg_muscle = np.concatenate([self._st_m, self._wr_m, self._wr_m, self._wr_m])
+        self._seg_weight = np.ones(len(seg_muscle))
+        self._incidence = sparse.csr_matrix(
+            (np.ones(len(seg_muscle)), (seg_muscle, np.arange(len(seg_muscle)))), shape=(self.n_muscles, len(seg_muscle))
+        )
+
     def compute(self, R_body: np.ndarray, p_body: np.ndarray, axes: np.ndarray, origins: np.ndarray, v: np.ndarray | None = None) -> PathState:
         """Lengths and moment arms from body poses (R (nb, 3, 3), p (nb, 3)) and coordinate axes.
 
         axes, origins: (n_coords, 3) world joint axes and points on them (origins unused for
         slides). With `v` (generalized velocities), lengthening velocities are returned too.
         """
-        P = np.einsum("nij,nj->ni", R_body[self._site_body], self._site_local) + p_body[self._site_body]
-        nw = len(self._wr_m)
-        # wrap instances
-        Rw = np.einsum("nij,njk->nik", R_body[self._wr_body], self._wr_rot)
-        cw = np.einsum("nij,nj->ni", R_body[self._wr_body], self._wr_pos) + p_body[self._wr_body]
+        P = (R_body[self._site_body] @ self._site_local[:, :, None])[:, :, 0] + p_body[self._site_body]
+        Rwb = R_body[self._wr_body]
+        Rw = Rwb @ self._wr_rot
+        cw = (Rwb @ self._wr_pos[:, :, None])[:, :, 0] + p_body[self._wr_body]
         x0, x1 = P[self._wr_a], P[self._wr_b]
         t0, t1, wlen, wrapped = wrap_points(x0, x1, cw, Rw, self._wr_radius, self._wr_cyl, P[self._wr_side], self._wr_has_side)
 
-        # all straight pieces: (start point, start body, end point, end body, muscle)
-        sb, wb = self._site_body, self._wr_body
+        # all straight pieces, in the fixed order of self._seg_*: sites, site->t0, t1->site, site->site
         starts = np.concatenate([P[self._st_a], x0, t1, x0])
         ends = np.concatenate([P[self._st_b], t0, x1, x1])
-        start_body = np.concatenate([sb[self._st_a], sb[self._wr_a], wb, sb[self._wr_a]])
-        end_body = np.concatenate([sb[self._st_b], wb, sb[self._wr_b], sb[self._wr_b]])
-        weight = np.concatenate([np.ones(len(self._st_m)), wrapped, wrapped, ~wrapped]).astype(float)
-        muscle = np.concatenate([self._st_m, self._wr_m, self._wr_m, self._wr_m])
+        n_st = len(self._st_m)
+        weight = self._seg_weight.copy()
+        nw = len(self._wr_m)
+        weight[n_st:n_st + nw] = wrapped
+        weight[n_st + nw:n_st + 2 * nw] = wrapped
+        weight[n_st + 2 * nw:] = ~wrapped
 
-        seg = ends - starts
-        u, seglen = _normalize(seg)
-        lengths = np.bincount(muscle, weights=weight * seglen, minlength=self.n_muscles)
+        u, seglen = _normalize(ends - starts)
+        lengths = self._incidence @ (weight * seglen)
         lengths += np.bincount(self._wr_m, weights=np.where(wrapped, wlen, 0.0), minlength=self.n_muscles)
 
-        # d(length)/dq: u . (J_end - J_start); J of point p on body b, column k:
-        #   revolute: moves[b, k] * axis_k x (p - o_k);  prismatic: moves[b, k] * axis_k
-        # u . (a x (p - o)) = (p - o) . (u x a)
-        uxa = np.cross(u[:, None, :], axes[None, :, :])  # (ns, nc, 3)
-        def proj(p, b):
-            rot = np.einsum("snk,snk->sn", p[:, None, :] - origins[None, :, :], uxa)
-            lin = u @ axes.T
-            return self._moves[b] * np.where(self._revolute[None, :], rot, lin)
-        dl = (proj(ends, end_body) - proj(starts, start_body)) * weight[:, None]
-        grad = np.zeros((self.n_muscles, self.n_coords))
-        np.add.at(grad, muscle, dl)
+        # d(length)/dq = u . (J_end - J_start).  Column k of the Jacobian of point p on body b:
+        #   revolute: moves[b, k] * a_k x (p - o_k);  prismatic: moves[b, k] * a_k.
+        # u . (a x (p - o)) = a . (p x u) - u . (a x o)
+        lin = u @ axes.T
+        u_axo = u @ _cross(axes, origins).T
+        def column_terms(p):
+            rot = _cross(p, u) @ axes.T - u_axo
+            return np.where(self._revolute, rot, lin)
+        dl = self._moves[self._seg_end_body] * column_terms(ends) - self._moves[self._seg_start_body] * column_terms(starts)
+        grad = self._incidence @ (dl * weight[:, None])
         state = PathState(lengths=lengths, moment_arms=-grad)
         if v is not None:
             state.velocities = grad @ np.asarray(v, dtype=float)
         return state
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of (n, 3) arrays (cheaper than np.cross for small n)."""
+    return np.stack(
+        [a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2], a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]],
+        axis=1,
+    )

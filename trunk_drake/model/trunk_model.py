@@ -54,7 +54,7 @@ class TrunkModel:
         return np.array([getattr(m, attribute) for m in self.spec.muscles], dtype=float)
 
     # ---- kinematics ----------------------------------------------------------------
-    def check_q(self, q, name: str = "q") -> np.ndarray:
+    def check_q(self, q, name: str = "q", check_range: bool = True) -> np.ndarray:
         """q as a float array; ValueError on wrong length or NaN, a one-time warning out of range."""
         q = np.asarray(q, dtype=float).reshape(-1)
         if q.shape != (len(self.coordinate_info),):
@@ -65,7 +65,7 @@ class TrunkModel:
         bad = [f"{c.name}={v}" for c, v in zip(self.coordinate_info, q) if not np.isfinite(v)]
         if bad:
             raise ValueError(f"{name} contains non-finite values: {', '.join(bad)} (coordinates {self.coordinates})")
-        for c, v in zip(self.coordinate_info, q):
+        for c, v in zip(self.coordinate_info, q if check_range else ()):
             if c.source_joint is not None and not (c.range[0] <= v <= c.range[1]) and c.name not in self._warned:
                 self._warned.add(c.name)
                 warnings.warn(
@@ -78,9 +78,8 @@ class TrunkModel:
     def path_state_from_context(self, context, v=None) -> PathState:
         """Muscle path kinematics for a plant context (body poses read from the plant)."""
         plant = self.plant
-        poses = plant.get_body_poses_output_port().Eval(context)
-        R = np.array([X.rotation().matrix() for X in poses])
-        p = np.array([X.translation() for X in poses])
+        poses = np.array([X.GetAsMatrix34() for X in plant.get_body_poses_output_port().Eval(context)])
+        R, p = poses[:, :, :3], poses[:, :, 3]
         axes = np.empty((len(self._joints), 3))
         origins = np.empty((len(self._joints), 3))
         for k, (joint, body_index, X_BM, axis_M) in enumerate(self._joints):
@@ -94,7 +93,7 @@ class TrunkModel:
         q = self.check_q(q)
         self.plant.SetPositions(self._context, q)
         if v is not None:
-            v = self.check_q(v, "v")
+            v = self.check_q(v, "v", check_range=False)
         return self.path_state_from_context(self._context, v)
 
     def muscle_lengths(self, q) -> np.ndarray:
