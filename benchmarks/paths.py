@@ -1,0 +1,53 @@
+"""Benchmark: lengths + moment arms of all 210 MyoTorso muscles at one pose; prints JSON.
+
+Ours: `TrunkModel.path_state(q)` (sets q in the Drake context, reads body poses, vectorised
+paths). MuJoCo (same model, same pose): mj_kinematics + mj_comPos + mj_tendon + mj_transmission.
+"""
+
+import json
+import platform
+import time
+
+import mujoco
+import numpy as np
+
+import trunk_drake as td
+from trunk_drake.model.myotorso import compile_myotorso
+
+
+def best_of(fn, repeat=7, number=200):
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        for _ in range(number):
+            fn()
+        times.append((time.perf_counter() - t0) / number)
+    return min(times), float(np.median(times))
+
+
+def main():
+    out = {"machine": platform.processor() or platform.machine(), "python": platform.python_version()}
+    m = compile_myotorso()
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(0)
+    for dofs in ("sagittal", "spine3d"):
+        model = td.load_model(dofs=dofs)
+        q = np.array([rng.uniform(*c.range) * 0.5 if c.source_joint else 0.0 for c in model.coordinate_info])
+        best, median = best_of(lambda: model.path_state(q))
+        out[f"trunk_drake_{dofs}_ms"] = {"best": best * 1e3, "median": median * 1e3}
+
+    def mj():
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        mujoco.mj_tendon(m, d)
+        mujoco.mj_transmission(m, d)
+
+    best, median = best_of(mj)
+    out["mujoco_ms"] = {"best": best * 1e3, "median": median * 1e3}
+    out["n_muscles"] = int(m.nu)
+    out["target_ms"] = 0.5
+    print(json.dumps(out, indent=2))
+
+
+if __name__ == "__main__":
+    main()
