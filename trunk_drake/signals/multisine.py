@@ -40,10 +40,9 @@ device, not a platform) could be found with the tools available to us: the abstr
 gives the bandwidths (0.2 Hz up to 1, 3 or 10 Hz) but not the amplitude, and the
 thesis does not print it. :data:`DEFAULT_AMPLITUDE_RMS_M` (0.01 m RMS) is therefore an
 UNSOURCED placeholder chosen to be a gentle, car-like fore-aft motion (for the default
-0.2-1 Hz flat-displacement spectrum it gives a peak of about 2.4-3.4 cm, depending on the
-seed, and an RMS
-acceleration of roughly 0.2 m/s^2). Set ``amplitude`` explicitly when reproducing an
-experiment.
+0.2-1 Hz flat-displacement spectrum it gives a peak of about 2.4-3.4 cm, depending on
+the seed, and an RMS acceleration of roughly 0.2 m/s^2). Set ``amplitude`` explicitly
+when reproducing an experiment.
 """
 
 from __future__ import annotations
