@@ -1,0 +1,40 @@
+"""Muscle models: Thelen 2003 Hill-type muscle (pure numpy, vectorised over muscles)."""
+
+from .thelen import (
+    THESIS_CONSTANTS,
+    ForceSplit,
+    MuscleParameters,
+    MuscleState,
+    RigidTendonDerivatives,
+    ThelenConstants,
+    activation_derivative,
+    active_force_length,
+    active_force_length_derivative,
+    clamp_activation,
+    compliant_tendon,
+    equilibrium_fiber_length,
+    fiber_velocity_from_force,
+    force_velocity,
+    force_velocity_derivatives,
+    minimum_fiber_length,
+    parallelogram_height,
+    passive_force_length,
+    passive_force_length_derivative,
+    pennation_angle,
+    rigid_tendon,
+    rigid_tendon_derivatives,
+    rigid_tendon_force_split,
+    tendon_force_length,
+    tendon_force_length_derivative,
+)
+
+__all__ = [
+    "THESIS_CONSTANTS", "ForceSplit", "MuscleParameters", "MuscleState",
+    "RigidTendonDerivatives", "ThelenConstants", "activation_derivative",
+    "active_force_length", "active_force_length_derivative", "clamp_activation",
+    "compliant_tendon", "equilibrium_fiber_length", "fiber_velocity_from_force",
+    "force_velocity", "force_velocity_derivatives", "minimum_fiber_length",
+    "parallelogram_height", "passive_force_length", "passive_force_length_derivative",
+    "pennation_angle", "rigid_tendon", "rigid_tendon_derivatives", "rigid_tendon_force_split",
+    "tendon_force_length", "tendon_force_length_derivative",
+]
