@@ -70,12 +70,12 @@ class Coordinate:
     range: tuple[float, float]  # in our sign convention
 
 
-def coordinates_for(spec: ModelSpec, dofs: str) -> list[Coordinate]:
+def coordinates_for(spec: ModelSpec, dofs: str, pelvis_free: bool = True) -> list[Coordinate]:
     """The free coordinates of a configuration, in kinematic order (root to tip)."""
     if dofs not in DOFS:
         raise ValueError(f"unknown configuration dofs={dofs!r}; expected one of {DOFS}")
     coords: list[Coordinate] = []
-    if dofs == "sagittal":
+    if dofs == "sagittal" and pelvis_free:
         coords.append(Coordinate("pelvis_tx", PELVIS_BODY, "slide", PELVIS_AXIS.copy(), None, 1.0, (-1.0, 1.0)))
     suffixes = ("FE",) if dofs == "sagittal" else ("FE", "LB", "AR")
     for level in LEVELS:
@@ -102,16 +102,18 @@ def _spatial_inertia(body) -> SpatialInertia:
     return SpatialInertia.MakeFromCentralInertia(body.mass, np.asarray(body.com, dtype=float), central)
 
 
-def build_plant(spec: ModelSpec, dofs: str = "sagittal", pelvis_mass: float | None = None) -> tuple[MultibodyPlant, list[Coordinate]]:
+def build_plant(spec: ModelSpec, dofs: str = "sagittal", pelvis_mass: float | None = None,
+                pelvis_free: bool = True) -> tuple[MultibodyPlant, list[Coordinate]]:
     """A finalized continuous-time MultibodyPlant of `spec` and its coordinates (in q order).
 
     Body frames equal the source model's body frames, so path sites and wrap surfaces
     keep their local coordinates. Bodies with several free coordinates are reached
     through massless intermediate bodies (one revolute joint each), which reproduces
     MuJoCo's sequential joint composition. `pelvis_mass` overrides the sacrum mass (the
-    thesis used 10,000 kg for its force-driven perturbation).
+    thesis used 10,000 kg for its force-driven perturbation). With ``pelvis_free=False``
+    the sagittal model has no ``pelvis_tx`` (pelvis welded, e.g. to a moving frame).
     """
-    coords = coordinates_for(spec, dofs)
+    coords = coordinates_for(spec, dofs, pelvis_free)
     by_body: dict[str, list[Coordinate]] = {}
     for c in coords:
         by_body.setdefault(c.body, []).append(c)

@@ -25,6 +25,8 @@ class TrunkModel:
 
     spec: ModelSpec
     dofs: str
+    pelvis_free: bool
+    pelvis_mass: float | None
     plant: object
     coordinate_info: list[Coordinate]
     _paths: MusclePaths = field(repr=False)
@@ -48,6 +50,12 @@ class TrunkModel:
     @property
     def n_muscles(self) -> int:
         return len(self.spec.muscles)
+
+    def variant(self, **changes) -> "TrunkModel":
+        """The same model (same spec) rebuilt with other options of `load_model`."""
+        options = {"dofs": self.dofs, "pelvis_free": self.pelvis_free, "pelvis_mass": self.pelvis_mass}
+        options.update(changes)
+        return load_model(spec=self.spec, **options)
 
     def muscle_array(self, attribute: str) -> np.ndarray:
         """A per-muscle parameter as an array, e.g. ``muscle_array("max_isometric_force")``."""
@@ -119,8 +127,8 @@ class TrunkModel:
             self._joints.append((joint, int(frame.body().index()), frame.GetFixedPoseInBodyFrame(), np.asarray(axis)))
 
 
-def _build(spec: ModelSpec, dofs: str, pelvis_mass: float | None) -> TrunkModel:
-    plant, coords = build_plant(spec, dofs, pelvis_mass=pelvis_mass)
+def _build(spec: ModelSpec, dofs: str, pelvis_mass: float | None, pelvis_free: bool) -> TrunkModel:
+    plant, coords = build_plant(spec, dofs, pelvis_mass=pelvis_mass, pelvis_free=pelvis_free)
     n_bodies = plant.num_bodies()
     moves = np.zeros((n_bodies, len(coords)))
     for k, c in enumerate(coords):
@@ -129,7 +137,7 @@ def _build(spec: ModelSpec, dofs: str, pelvis_mass: float | None) -> TrunkModel:
             moves[int(b), k] = 1.0
     names = [plant.get_body(_body_index(i)).name() for i in range(n_bodies)]
     paths = MusclePaths(spec, names, [c.kind for c in coords], moves)
-    model = TrunkModel(spec=spec, dofs=dofs, plant=plant, coordinate_info=coords, _paths=paths, _context=plant.CreateDefaultContext())
+    model = TrunkModel(spec=spec, dofs=dofs, pelvis_free=pelvis_free, pelvis_mass=pelvis_mass, plant=plant, coordinate_info=coords, _paths=paths, _context=plant.CreateDefaultContext())
     model._init_joints()
     return model
 
@@ -138,17 +146,19 @@ def _body_index(i: int) -> BodyIndex:
     return BodyIndex(i)
 
 
-def load_model(dofs: str = "sagittal", spec: ModelSpec | None = None, pelvis_mass: float | None = None) -> TrunkModel:
+def load_model(dofs: str = "sagittal", spec: ModelSpec | None = None, pelvis_mass: float | None = None,
+               pelvis_free: bool = True) -> TrunkModel:
     """The default MyoTorso trunk model in configuration `dofs` ("sagittal" or "spine3d").
 
     Hill fiber and tendon lengths are derived from the neutral-posture musculotendon lengths
-    by Christophy et al.'s method unless `spec` already carries them.
+    by Christophy et al.'s method unless `spec` already carries them. `pelvis_mass` replaces
+    the sacrum's mass; ``pelvis_free=False`` welds the sagittal pelvis (no ``pelvis_tx``).
     """
     if dofs not in DOFS:
         raise ValueError(f"unknown configuration dofs={dofs!r}; expected one of {DOFS}")
     spec = spec or read_myotorso()
     if any(np.isnan(m.optimal_fiber_length) for m in spec.muscles):
-        geometric = _build(spec, dofs, pelvis_mass)
+        geometric = _build(spec, "spine3d", None, False)
         neutral = geometric.path_state(np.zeros(len(geometric.coordinate_info))).lengths
         spec = with_hill_parameters(spec, neutral)
-    return _build(spec, dofs, pelvis_mass)
+    return _build(spec, dofs, pelvis_mass, pelvis_free)

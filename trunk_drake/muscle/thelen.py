@@ -37,7 +37,8 @@ __all__ = [
     "passive_force_length", "passive_force_length_derivative", "force_velocity",
     "force_velocity_derivatives", "fiber_velocity_from_force", "tendon_force_length",
     "tendon_force_length_derivative", "parallelogram_height", "minimum_fiber_length",
-    "pennation_angle", "clamp_activation", "activation_derivative", "rigid_tendon",
+    "pennation_angle", "clamp_activation", "activation_derivative", "RigidKinematics",
+    "rigid_kinematics", "rigid_tendon",
     "rigid_tendon_force_split", "rigid_tendon_derivatives", "compliant_tendon",
     "equilibrium_fiber_length",
 ]
@@ -402,35 +403,61 @@ def _rigid_kinematics(l_mt, v_mt, params, constants):
     return l_mt, v_mt, h, l_f, phi, cos_phi, v_f, clamped
 
 
+class RigidKinematics(NamedTuple):
+    """Activation-independent part of the rigid-tendon muscle state (arrays over muscles)."""
+
+    fiber_length: np.ndarray
+    pennation_angle: np.ndarray
+    cos_pennation: np.ndarray
+    fiber_velocity: np.ndarray
+    normalized_fiber_length: np.ndarray
+    normalized_fiber_velocity: np.ndarray
+    active_force_length: np.ndarray
+    passive_force_length: np.ndarray
+    clamped: np.ndarray
+
+
+def rigid_kinematics(l_mt, v_mt, params: MuscleParameters,
+                     constants: ThelenConstants = THESIS_CONSTANTS) -> RigidKinematics:
+    """Fiber kinematics and length multipliers for an inextensible tendon.
+
+    ``l_f cos(phi) = l_mt - l_slack`` and ``v_f = v_mt cos(phi)``; depends only on the path,
+    so callers may reuse it for several activations (see :func:`rigid_tendon`).
+    """
+    _, _, _, l_f, phi, cos_phi, v_f, clamped = _rigid_kinematics(l_mt, v_mt, params, constants)
+    l_n = l_f / params.optimal_fiber_length
+    v_n = v_f / (constants.max_contraction_velocity * params.optimal_fiber_length)
+    return RigidKinematics(l_f, phi, cos_phi, v_f, l_n, v_n, active_force_length(l_n, constants),
+                           passive_force_length(l_n, constants), clamped)
+
+
 def rigid_tendon(activation, l_mt, v_mt, params: MuscleParameters,
-                 constants: ThelenConstants = THESIS_CONSTANTS) -> MuscleState:
+                 constants: ThelenConstants = THESIS_CONSTANTS,
+                 kinematics: RigidKinematics | None = None) -> MuscleState:
     """Muscle state for an inextensible tendon of length ``tendon_slack_length``.
 
     ``l_mt`` (m) and ``v_mt`` (m/s, lengthening positive) are the musculotendon path
     length and velocity. Fiber kinematics follow the path: ``l_f cos(phi) = l_mt - l_slack``
     and ``v_f = v_mt cos(phi)``; tendon force ``(a f_AL f_V + f_PE) F_max cos(phi)``,
     matching OpenSim's ``calcInextensibleTendonActiveFiberForce`` plus passive force
-    (no active force when the fiber sits at its minimum length). OpenSim 4.6 refuses
-    ``ignore_tendon_compliance`` for Thelen2003Muscle, so that function is the reference.
+    (no active force when the fiber sits at its minimum length). Pass `kinematics`
+    (from :func:`rigid_kinematics` at the same path) to skip recomputing them.
     """
     a = clamp_activation(activation, constants)
-    _, _, _, l_f, phi, cos_phi, v_f, clamped = _rigid_kinematics(l_mt, v_mt, params, constants)
-    l_opt, f_max = params.optimal_fiber_length, params.max_isometric_force
-    l_n = l_f / l_opt
-    v_n = v_f / (constants.max_contraction_velocity * l_opt)
-    fal = active_force_length(l_n, constants)
-    fpe = passive_force_length(l_n, constants)
-    fv = np.where(clamped, 1.0, force_velocity(v_n, a, constants))
-    active = np.where(clamped, 0.0, f_max * a * fal * fv)
-    passive = fpe * f_max
-    zeros = np.zeros_like(l_f)
+    k = kinematics if kinematics is not None else rigid_kinematics(l_mt, v_mt, params, constants)
+    f_max = params.max_isometric_force
+    fv = np.where(k.clamped, 1.0, force_velocity(k.normalized_fiber_velocity, a, constants))
+    active = np.where(k.clamped, 0.0, f_max * a * k.active_force_length * fv)
+    passive = k.passive_force_length * f_max
+    zeros = np.zeros_like(k.fiber_length)
     return MuscleState(
-        activation=np.broadcast_to(a, l_f.shape).copy(), fiber_length=l_f,
-        normalized_fiber_length=l_n, pennation_angle=phi, fiber_velocity=v_f,
-        normalized_fiber_velocity=v_n, tendon_length=params.tendon_slack_length.copy(),
-        tendon_strain=zeros, active_force_length=fal, passive_force_length=fpe,
+        activation=np.broadcast_to(a, zeros.shape).copy(), fiber_length=k.fiber_length,
+        normalized_fiber_length=k.normalized_fiber_length, pennation_angle=k.pennation_angle,
+        fiber_velocity=k.fiber_velocity, normalized_fiber_velocity=k.normalized_fiber_velocity,
+        tendon_length=params.tendon_slack_length.copy(), tendon_strain=zeros,
+        active_force_length=k.active_force_length, passive_force_length=k.passive_force_length,
         force_velocity=fv, active_fiber_force=active, passive_fiber_force=passive,
-        tendon_force=(active + passive) * cos_phi, fiber_clamped=clamped)
+        tendon_force=(active + passive) * k.cos_pennation, fiber_clamped=k.clamped)
 
 
 def rigid_tendon_force_split(l_mt, v_mt, params: MuscleParameters,

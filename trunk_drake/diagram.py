@@ -1,0 +1,165 @@
+"""Wire the neuromuscular trunk Diagram: plant, muscle paths, muscles, stretch reflex,
+feed-forward co-activation, intervertebral bushings and the pelvis perturbation.
+
+    perturbation ──► plant ──► paths ──► muscles ──► generalized forces ──► plant
+                   reflex(fiber state) ─┘   ▲ feed-forward excitation
+                   bushings(q, v) ──────────┘
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import Adder, ConstantVectorSource, VectorLogSink
+
+from trunk_drake.model.plant import LEVELS
+from trunk_drake.muscle.thelen import ThelenConstants
+from trunk_drake.systems.bushing import DEFAULT_DAMPING, DEFAULT_STIFFNESS, IntervertebralBushings
+from trunk_drake.systems.delay import TransportDelay
+from trunk_drake.systems.muscles import MuscleSystem, muscle_parameters
+from trunk_drake.systems.paths import MusclePathSystem
+from trunk_drake.systems.perturbation import PelvisForcePerturbation, PrescribedPelvisMotion
+from trunk_drake.systems.reflex import StretchReflex, gains_by_group
+
+PELVIS_MODES = ("prescribed", "force", "none")
+THESIS_PELVIS_MASS = 10_000.0  # kg, seed section 3.4.2
+
+
+@dataclass
+class TrunkOptions:
+    """Everything that defines one trunk diagram (SI units). Defaults follow the thesis."""
+
+    tendon: str = "rigid"
+    kp: float | dict | np.ndarray = 0.0  # stretch-reflex position gain (scalar, per group, or per muscle)
+    kv: float | dict | np.ndarray = 0.0  # velocity gain
+    l_desired: float = 1.0
+    reflex_delay: float = 0.0  # s
+    feedforward: np.ndarray | None = None  # constant excitation; None -> minimum activation
+    stiffness: float | np.ndarray = DEFAULT_STIFFNESS  # Nm/rad per lumbar level
+    damping: float | np.ndarray = DEFAULT_DAMPING  # Nms/rad
+    cubic: float = 0.0  # nonlinear bushing: M = -k (dq + cubic dq^3)
+    pelvis: str = "prescribed"
+    pelvis_mass: float = THESIS_PELVIS_MASS  # only for pelvis="force"
+    strength_scale: float = 1.0
+    muscle_mask: np.ndarray | None = None  # 0/1 per muscle: which muscles act (Table 4.1 study)
+    constants: ThelenConstants = field(default_factory=ThelenConstants)
+
+    def per_muscle(self, model, value) -> np.ndarray:
+        if isinstance(value, dict):
+            return gains_by_group(model, value)
+        return np.broadcast_to(np.asarray(value, dtype=float), (model.n_muscles,)).copy()
+
+
+@dataclass
+class TrunkDiagram:
+    """A built diagram and handles to its parts."""
+
+    diagram: Diagram
+    model: object  # the TrunkModel whose plant is inside the diagram
+    options: TrunkOptions
+    plant: object
+    paths: MusclePathSystem
+    muscles: MuscleSystem
+    reflex: StretchReflex
+    bushings: IntervertebralBushings
+    perturbation: object | None
+    loggers: dict[str, VectorLogSink]
+    fe_indices: np.ndarray  # indices of the lumbar flexion-extension coordinates in q
+
+
+def plant_model_for(model, pelvis: str):
+    """The model variant a pelvis mode needs (prescribed motion: pelvis welded)."""
+    if pelvis not in PELVIS_MODES:
+        raise ValueError(f"pelvis={pelvis!r}; expected one of {PELVIS_MODES}")
+    if model.dofs != "sagittal":
+        raise ValueError(f"dynamic simulation needs the 'sagittal' model, got dofs={model.dofs!r}")
+    return model.variant(pelvis_free=(pelvis == "force"))
+
+
+def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation=None, log_period: float = 0.01) -> TrunkDiagram:
+    """Build the diagram for `model` (sagittal). `perturbation` is a platform signal with
+    `evaluate(t) -> (x, v, a)` (e.g. `trunk_drake.signals.make_multisine(...)`), or None."""
+    opts = options or TrunkOptions()
+    pelvis_mode = opts.pelvis if perturbation is not None else ("none" if opts.pelvis == "prescribed" else opts.pelvis)
+    if opts.pelvis == "force":
+        base = model.variant(pelvis_free=True, pelvis_mass=opts.pelvis_mass)
+    else:
+        base = plant_model_for(model, "prescribed")
+    plant = base.plant
+    nq, nv, n = plant.num_positions(), plant.num_velocities(), base.n_muscles
+    fe = np.array([base.coordinates.index(f"{lvl}_FE") for lvl in LEVELS])
+
+    builder = DiagramBuilder()
+    builder.AddSystem(plant)
+    paths = builder.AddNamedSystem("muscle_paths", MusclePathSystem(base))
+    params = muscle_parameters(base, opts.strength_scale)
+    muscles = builder.AddNamedSystem("muscles", MuscleSystem(base, opts.constants, opts.tendon, params, mask=opts.muscle_mask))
+    reflex = builder.AddNamedSystem(
+        "stretch_reflex",
+        StretchReflex(n, opts.per_muscle(base, opts.kp), opts.per_muscle(base, opts.kv), opts.l_desired, opts.constants.minimum_activation),
+    )
+    feedforward = opts.feedforward if opts.feedforward is not None else np.full(n, opts.constants.minimum_activation)
+    feedforward = np.asarray(feedforward, dtype=float)
+    if feedforward.shape != (n,):
+        raise ValueError(f"feedforward excitation must have {n} entries (one per muscle), got shape {feedforward.shape}")
+    ff = builder.AddNamedSystem("feedforward", ConstantVectorSource(feedforward))
+    bushings = builder.AddNamedSystem(
+        "bushings", IntervertebralBushings(nq, nv, fe, opts.stiffness, opts.damping, cubic=opts.cubic)
+    )
+
+    builder.Connect(plant.get_state_output_port(), paths.get_input_port(0))
+    builder.Connect(plant.get_state_output_port(), bushings.get_input_port(0))
+    builder.Connect(paths.GetOutputPort("path_state"), muscles.GetInputPort("path_state"))
+    builder.Connect(ff.get_output_port(), reflex.GetInputPort("feedforward"))
+    for name in ("normalized_fiber_length", "normalized_fiber_velocity"):
+        source = muscles.GetOutputPort(name)
+        if opts.reflex_delay > 0:
+            delay = builder.AddNamedSystem(f"delay_{name}", TransportDelay(n, opts.reflex_delay))
+            builder.Connect(source, delay.get_input_port(0))
+            source = delay.get_output_port(0)
+        builder.Connect(source, reflex.GetInputPort(name))
+    builder.Connect(reflex.GetOutputPort("excitation"), muscles.GetInputPort("excitation"))
+
+    forces = [muscles.GetOutputPort("generalized_force"), bushings.GetOutputPort("generalized_force")]
+    pert = None
+    if pelvis_mode == "prescribed":
+        direction = _anterior_direction(base)
+        pert = builder.AddNamedSystem("perturbation", PrescribedPelvisMotion(plant, perturbation, direction))
+        builder.Connect(pert.GetOutputPort("spatial_forces"), plant.get_applied_spatial_force_input_port())
+    elif pelvis_mode == "force":
+        if perturbation is None:
+            raise ValueError("pelvis='force' needs a perturbation signal")
+        pert = builder.AddNamedSystem(
+            "perturbation", PelvisForcePerturbation(nv, base.coordinates.index("pelvis_tx"), perturbation, opts.pelvis_mass)
+        )
+        forces.append(pert.GetOutputPort("generalized_force"))
+    adder = builder.AddNamedSystem("generalized_force_sum", Adder(len(forces), nv))
+    for i, port in enumerate(forces):
+        builder.Connect(port, adder.get_input_port(i))
+    builder.Connect(adder.get_output_port(), plant.get_applied_generalized_force_input_port())
+
+    loggers = {}
+
+    def log(name, port):
+        sink = builder.AddNamedSystem(f"log_{name}", VectorLogSink(port.size(), log_period))
+        builder.Connect(port, sink.get_input_port())
+        loggers[name] = sink
+
+    log("state", plant.get_state_output_port())
+    for name in ("activation", "tendon_force", "normalized_fiber_length", "normalized_fiber_velocity", "fiber_length"):
+        log(name, muscles.GetOutputPort(name))
+    log("excitation", reflex.GetOutputPort("excitation"))
+    if pert is not None:
+        log("platform", pert.GetOutputPort("platform"))
+    diagram = builder.Build()
+    diagram.set_name("trunk")
+    return TrunkDiagram(diagram, base, opts, plant, paths, muscles, reflex, bushings, pert, loggers, fe)
+
+
+def _anterior_direction(model) -> np.ndarray:
+    """World direction of the pelvis' anterior (x) axis at the default posture."""
+    plant = model.plant
+    context = plant.CreateDefaultContext()
+    return plant.EvalBodyPoseInWorld(context, plant.GetBodyByName("sacrum")).rotation().matrix()[:, 0]

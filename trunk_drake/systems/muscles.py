@@ -1,0 +1,113 @@
+"""MuscleSystem: all muscles of the model as Thelen 2003 Hill units, vectorised."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import LeafSystem
+
+from trunk_drake.model.paths import PathState
+from trunk_drake.muscle import thelen
+from trunk_drake.muscle.thelen import MuscleParameters, ThelenConstants
+
+TENDON_MODES = ("rigid", "compliant")
+
+
+def muscle_parameters(model, strength_scale: float = 1.0) -> MuscleParameters:
+    """The model's Hill parameters as a thelen.MuscleParameters (forces scaled by `strength_scale`)."""
+    return MuscleParameters(
+        max_isometric_force=model.muscle_array("max_isometric_force") * strength_scale,
+        optimal_fiber_length=model.muscle_array("optimal_fiber_length"),
+        tendon_slack_length=model.muscle_array("tendon_slack_length"),
+        pennation_angle_at_optimal=model.muscle_array("pennation_angle"),
+    )
+
+
+def empty_path_state(model) -> PathState:
+    n, nv = model.n_muscles, model.plant.num_velocities()
+    return PathState(np.zeros(n), np.zeros((n, nv)), np.zeros(n))
+
+
+class MuscleSystem(LeafSystem):
+    """Activation dynamics and Hill force of every muscle, vectorised over muscles.
+
+    Inputs: ``excitation`` (n_muscles), ``path_state`` (abstract PathState).
+    State: activations; with ``tendon="compliant"`` also fiber lengths (as OpenSim's
+    Thelen2003Muscle). Outputs: ``muscle_state`` (abstract thelen.MuscleState, computed
+    once per context), ``activation``, ``tendon_force`` (N), ``normalized_fiber_length``,
+    ``normalized_fiber_velocity``, ``fiber_length`` (m), ``generalized_force``
+    (moment arms^T tendon force, one entry per plant velocity). An optional 0/1 `mask`
+    switches muscles off (their tendon force is zeroed), for studies that add groups one by one.
+    """
+
+    def __init__(self, model, constants: ThelenConstants | None = None, tendon: str = "rigid",
+                 params: MuscleParameters | None = None, mask=None):
+        super().__init__()
+        if tendon not in TENDON_MODES:
+            raise ValueError(f"tendon={tendon!r}; expected one of {TENDON_MODES}")
+        self.constants = constants or ThelenConstants()
+        self.params = params or muscle_parameters(model)
+        self.tendon = tendon
+        self.n = n = model.n_muscles
+        nv = model.plant.num_velocities()
+        self.mask = None if mask is None else np.asarray(mask, dtype=float)
+        if self.mask is not None and self.mask.shape != (n,):
+            raise ValueError(f"muscle mask must have {n} entries, got shape {self.mask.shape}")
+        x0 = np.full(n, self.constants.minimum_activation)
+        if tendon == "compliant":
+            x0 = np.concatenate([x0, self.params.optimal_fiber_length])
+        self.DeclareContinuousState(len(x0))
+        self._x0 = x0
+        self._kin_path, self._kin = None, None
+        self._u = self.DeclareVectorInputPort("excitation", n)
+        self._path = self.DeclareAbstractInputPort("path_state", AbstractValue.Make(empty_path_state(model)))
+        state_and_path = {self.all_state_ticket(), self._path.ticket()}
+        template = thelen.rigid_tendon(self._x0[:n], self.params.tendon_slack_length + self.params.optimal_fiber_length, 0.0, self.params, self.constants)
+        self._state_port = self.DeclareAbstractOutputPort(
+            "muscle_state", lambda: AbstractValue.Make(template), self._calc_state, prerequisites_of_calc=state_and_path
+        )
+        self.DeclareVectorOutputPort(
+            "activation", n, lambda c, o: o.SetFromVector(c.get_continuous_state_vector().CopyToVector()[:n]),
+            prerequisites_of_calc={self.all_state_ticket()},
+        )
+        for name in ("tendon_force", "normalized_fiber_length", "normalized_fiber_velocity", "fiber_length"):
+            self.DeclareVectorOutputPort(name, n, self._field(name), prerequisites_of_calc=state_and_path)
+        self.DeclareVectorOutputPort("generalized_force", nv, self._calc_generalized_force, prerequisites_of_calc=state_and_path)
+
+    @property
+    def default_state(self) -> np.ndarray:
+        """Initial state: minimum activation (and optimal fiber lengths for compliant tendons)."""
+        return self._x0.copy()
+
+    def SetDefaultState(self, context, state):  # noqa: N802 (Drake API)
+        state.get_mutable_continuous_state().SetFromVector(self._x0)
+
+    def muscle_state(self, context) -> thelen.MuscleState:
+        return self._state_port.Eval(context)
+
+    def _calc_state(self, context, output):
+        x = context.get_continuous_state_vector().CopyToVector()
+        path = self._path.Eval(context)
+        if self.tendon == "rigid":
+            if path is not self._kin_path:  # memo: the fiber kinematics depend only on the path
+                self._kin = thelen.rigid_kinematics(path.lengths, path.velocities, self.params, self.constants)
+                self._kin_path = path
+            value = thelen.rigid_tendon(x, path.lengths, path.velocities, self.params, self.constants, self._kin)
+        else:
+            value = thelen.compliant_tendon(x[: self.n], x[self.n :], path.lengths, self.params, self.constants)
+        if self.mask is not None:
+            value.tendon_force = value.tendon_force * self.mask
+        output.set_value(value)
+
+    def _field(self, name):
+        return lambda c, o: o.SetFromVector(getattr(self.muscle_state(c), name))
+
+    def _calc_generalized_force(self, context, output):
+        output.SetFromVector(self._path.Eval(context).moment_arms.T @ self.muscle_state(context).tendon_force)
+
+    def DoCalcTimeDerivatives(self, context, derivatives):  # noqa: N802 (Drake API)
+        x = context.get_continuous_state_vector().CopyToVector()
+        da = thelen.activation_derivative(self._u.Eval(context), x[: self.n], self.constants)
+        if self.tendon == "compliant":
+            da = np.concatenate([da, self.muscle_state(context).fiber_velocity])
+        derivatives.get_mutable_vector().SetFromVector(da)

@@ -1,0 +1,49 @@
+"""StretchReflex: the thesis' Muscle Fiber Stretch Controller (seed eq. 3.2) plus feed-forward."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.systems.framework import LeafSystem
+
+
+def gains_by_group(model, values: dict[str, float], default: float = 0.0) -> np.ndarray:
+    """Per-muscle gains from per-group values, e.g. {"sacrospinalis": 0.13, ...}."""
+    groups = model.groups
+    unknown = set(values) - set(groups)
+    if unknown:
+        raise ValueError(f"unknown muscle groups {sorted(unknown)}; groups of this model: {sorted(groups)}")
+    gains = np.full(model.n_muscles, float(default))
+    index = {n: i for i, n in enumerate(model.muscles)}
+    for group, value in values.items():
+        if not np.isfinite(value) or value < 0:
+            raise ValueError(f"reflex gain of group {group!r} must be finite and >= 0, got {value}")
+        gains[[index[m] for m in groups[group]]] = value
+    return gains
+
+
+class StretchReflex(LeafSystem):
+    """Excitation u = clip(u_ff + kp (l_n - l_d)+ + kv (dl_n)+, u_min, 1).
+
+    Inputs: ``feedforward`` (n), ``normalized_fiber_length`` (n, l / l_opt),
+    ``normalized_fiber_velocity`` (n, v / (v_max l_opt)). Output: ``excitation`` (n).
+    ``kp``, ``kv``, ``l_desired`` are per-muscle arrays (or scalars). Feedback is stateless;
+    a transport delay is added by the diagram builder around the feedback inputs.
+    """
+
+    def __init__(self, n: int, kp, kv, l_desired=1.0, min_excitation: float = 0.01):
+        super().__init__()
+        self.kp = np.broadcast_to(np.asarray(kp, float), (n,)).copy()
+        self.kv = np.broadcast_to(np.asarray(kv, float), (n,)).copy()
+        self.l_desired = np.broadcast_to(np.asarray(l_desired, float), (n,)).copy()
+        self.min_excitation = float(min_excitation)
+        self._ff = self.DeclareVectorInputPort("feedforward", n)
+        self._ln = self.DeclareVectorInputPort("normalized_fiber_length", n)
+        self._vn = self.DeclareVectorInputPort("normalized_fiber_velocity", n)
+        self.DeclareVectorOutputPort("excitation", n, self._calc)
+
+    def excitation(self, feedforward, norm_length, norm_velocity) -> np.ndarray:
+        feedback = self.kp * np.maximum(norm_length - self.l_desired, 0.0) + self.kv * np.maximum(norm_velocity, 0.0)
+        return np.clip(feedforward + feedback, self.min_excitation, 1.0)
+
+    def _calc(self, context, output):
+        output.SetFromVector(self.excitation(self._ff.Eval(context), self._ln.Eval(context), self._vn.Eval(context)))
