@@ -1,10 +1,10 @@
-"""Muscle path kinematics: lengths, lengthening velocities and moment arms, vectorised.
+"""Muscle path kinematics: lengths, lengthening velocities and moment arms of all muscles.
 
 A path is a chain of sites; between two sites it may wrap over a sphere or an infinite
 cylinder, optionally steered by a side-site, exactly as MuJoCo's spatial tendons
 (`mju_wrap`, `mj_tendon`): tangent points are found in the plane of the wrap (sphere:
 the plane through the centre and both end points; cylinder: the plane normal to its
-axis, the height interpolated along the path), the inside-wrap variant is used when the
+axis, the height interpolated along the path); the inside-wrap variant is used when the
 side-site lies inside the surface. The geometry is our own, computed from the poses of
 the Drake plant's bodies; MuJoCo is only the test oracle.
 
@@ -12,14 +12,18 @@ Moment arms are `-dL/dq`. The length gradient is the sum over straight segments 
 unit segment direction dotted with the difference of the end-point Jacobians, where
 wrap tangent points move with the wrap surface's body; for a taut (shortest) path the
 wrapped arc contributes nothing to first order.
+
+The kernel is compiled with numba (one pass over sites, wraps and segments, ~20 us for
+210 muscles); everything else here is set-up.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
-from scipy import sparse
 
 from trunk_drake.model.spec import ModelSpec
 
@@ -35,7 +39,8 @@ class PathState:
     velocities: np.ndarray | None = None  # (n_muscles,), = -moment_arms @ v
 
 
-def _quat_matrix(q: np.ndarray) -> np.ndarray:
+def quat_matrix(q) -> np.ndarray:
+    """Rotation matrix of a unit quaternion (w, x, y, z)."""
     w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
     return np.array(
         [
@@ -46,176 +51,295 @@ def _quat_matrix(q: np.ndarray) -> np.ndarray:
     )
 
 
-def _normalize(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    n = np.sqrt((v * v).sum(axis=-1))
-    return v / np.where(n < MINVAL, 1.0, n)[..., None], n
+# ---------------------------------------------------------------- MuJoCo wrapping (scalar)
+
+_jit = numba.njit(cache=True, fastmath=False)
 
 
-def _segments_intersect(p1x, p1y, p2x, p2y, p3x, p3y, p4x, p4y) -> np.ndarray:
-    """MuJoCo's is_intersect for 2-D segments p1-p2 and p3-p4, vectorised over components."""
+@_jit
+def _is_intersect(p1x, p1y, p2x, p2y, p3x, p3y, p4x, p4y):
     det = (p4y - p3y) * (p2x - p1x) - (p4x - p3x) * (p2y - p1y)
-    ok = np.abs(det) >= MINVAL
-    sdet = np.where(ok, det, 1.0)
-    a = ((p4x - p3x) * (p1y - p3y) - (p4y - p3y) * (p1x - p3x)) / sdet
-    b = ((p2x - p1x) * (p1y - p3y) - (p2y - p1y) * (p1x - p3x)) / sdet
-    return ok & (a >= 0) & (a <= 1) & (b >= 0) & (b <= 1)
+    if abs(det) < MINVAL:
+        return False
+    a = ((p4x - p3x) * (p1y - p3y) - (p4y - p3y) * (p1x - p3x)) / det
+    b = ((p2x - p1x) * (p1y - p3y) - (p2y - p1y) * (p1x - p3x)) / det
+    return 0.0 <= a <= 1.0 and 0.0 <= b <= 1.0
 
 
-def _wrap_circle(d0, d1, sd, has_side, rad):
-    """2-D wrap of segment d0-d1 around a circle of radius rad at the origin (MuJoCo wrap_circle).
+@_jit
+def _length_circle(p0x, p0y, p1x, p1y, ind, rad):
+    n0 = math.sqrt(p0x * p0x + p0y * p0y)
+    n1 = math.sqrt(p1x * p1x + p1y * p1y)
+    c = (p0x * p1x + p0y * p1y) / (n0 * n1)
+    angle = math.acos(min(1.0, max(-1.0, c)))
+    cross = p0y * p1x - p0x * p1y
+    if (cross > 0 and ind) or (cross < 0 and not ind):
+        angle = 2 * math.pi - angle
+    return rad * angle
 
-    Returns tangent points (n, 2) x 2, arc length (n,) and a mask of wrapped cases. Both
-    candidate solutions are computed at once (leading axis of length 2).
-    """
-    x0, y0, x1, y1 = d0[:, 0], d0[:, 1], d1[:, 0], d1[:, 1]
-    sqlen0 = x0 * x0 + y0 * y0
-    sqlen1 = x1 * x1 + y1 * y1
+
+@_jit
+def _wrap_circle(d, sd0, sd1, has_side, rad, pnt):
+    """MuJoCo wrap_circle: 2-D tangent points in pnt[4]; returns arc length or -1."""
+    sqlen0 = d[0] * d[0] + d[1] * d[1]
+    sqlen1 = d[2] * d[2] + d[3] * d[3]
     sqrad = rad * rad
-    dx, dy = x1 - x0, y1 - y0
+    if sqlen0 < sqrad or sqlen1 < sqrad or rad < MINVAL:
+        return -1.0
+    dx, dy = d[2] - d[0], d[3] - d[1]
     dd = dx * dx + dy * dy
-    valid = (sqlen0 >= sqrad) & (sqlen1 >= sqrad) & (rad >= MINVAL) & (dd >= MINVAL)
-    a = np.clip(-(dx * x0 + dy * y0) / np.where(dd < MINVAL, 1.0, dd), 0.0, 1.0)
-    nx, ny = a * dx + x0, a * dy + y0
-    clear = (nx * nx + ny * ny > sqrad) & (~has_side | (sd[:, 0] * nx + sd[:, 1] * ny >= 0))
-    valid &= ~clear
-
-    k0 = rad * np.sqrt(np.maximum(sqlen0 - sqrad, 0.0)) / np.where(valid, sqlen0, 1.0)
-    k1 = rad * np.sqrt(np.maximum(sqlen1 - sqrad, 0.0)) / np.where(valid, sqlen1, 1.0)
-    c0 = sqrad / np.where(valid, sqlen0, 1.0)
-    c1 = sqrad / np.where(valid, sqlen1, 1.0)
-    sgn = np.array([[1.0], [-1.0]])
-    t0x, t0y = x0 * c0 + sgn * k0 * y0, y0 * c0 - sgn * k0 * x0  # (2, n)
-    t1x, t1y = x1 * c1 - sgn * k1 * y1, y1 * c1 + sgn * k1 * x1
-    mx, my = t0x + t1x, t0y + t1y
-    mn = np.sqrt(mx * mx + my * my)
-    mn = np.where(mn < MINVAL, 1.0, mn)
-    ex, ey = t0x - t1x, t0y - t1y
-    good = np.where(has_side, (mx * sd[:, 0] + my * sd[:, 1]) / mn, -(ex * ex + ey * ey))
-    good = np.where(_segments_intersect(x0, y0, t0x, t0y, x1, y1, t1x, t1y), -10000.0, good)
-    second = ~(good[0] > good[1])
-    pick = second.astype(int)
-    cols = np.arange(len(rad))
-    t0x, t0y, t1x, t1y = t0x[pick, cols], t0y[pick, cols], t1x[pick, cols], t1y[pick, cols]
-    valid &= ~_segments_intersect(x0, y0, t0x, t0y, x1, y1, t1x, t1y)
-
-    n0 = np.sqrt(t0x * t0x + t0y * t0y)
-    n1 = np.sqrt(t1x * t1x + t1y * t1y)
-    cosang = (t0x * t1x + t0y * t1y) / np.where(n0 * n1 < MINVAL, 1.0, n0 * n1)
-    angle = np.arccos(np.clip(cosang, -1.0, 1.0))
-    cross = t0y * t1x - t0x * t1y
-    flip = ((cross > 0) & second) | ((cross < 0) & ~second)
-    angle = np.where(flip, 2 * np.pi - angle, angle)
-    return np.stack([t0x, t0y], axis=1), np.stack([t1x, t1y], axis=1), rad * angle, valid
-
-
-def _wrap_inside(d0, d1, rad):
-    """2-D inside wrap (MuJoCo wrap_inside): one tangent point, zero arc. Rarely used."""
-    n = d0.shape[0]
-    pnt = np.zeros((n, 2))
-    valid = np.zeros(n, dtype=bool)
-    for i in range(n):  # side-sites inside a wrap surface are rare; a scalar Newton is enough
-        pnt[i], valid[i] = _wrap_inside_one(d0[i], d1[i], rad[i])
-    return pnt, valid
+    if dd < MINVAL:
+        return -1.0
+    a = -(dx * d[0] + dy * d[1]) / dd
+    a = min(1.0, max(0.0, a))
+    tx, ty = a * dx + d[0], a * dy + d[1]
+    if tx * tx + ty * ty > sqrad and (not has_side or sd0 * tx + sd1 * ty >= 0):
+        return -1.0
+    sqrt0 = math.sqrt(sqlen0 - sqrad)
+    sqrt1 = math.sqrt(sqlen1 - sqrad)
+    best_good = 0.0
+    best = 0
+    for i in range(2):
+        sgn = 1.0 if i == 0 else -1.0
+        s0 = (d[0] * sqrad + sgn * rad * d[1] * sqrt0) / sqlen0
+        s1 = (d[1] * sqrad - sgn * rad * d[0] * sqrt0) / sqlen0
+        s2 = (d[2] * sqrad - sgn * rad * d[3] * sqrt1) / sqlen1
+        s3 = (d[3] * sqrad + sgn * rad * d[2] * sqrt1) / sqlen1
+        if has_side:
+            mx, my = s0 + s2, s1 + s3
+            mn = math.sqrt(mx * mx + my * my)
+            if mn < MINVAL:
+                mn = 1.0
+            good = (mx * sd0 + my * sd1) / mn
+        else:
+            ex, ey = s0 - s2, s1 - s3
+            good = -(ex * ex + ey * ey)
+        if _is_intersect(d[0], d[1], s0, s1, d[2], d[3], s2, s3):
+            good = -10000.0
+        # MuJoCo keeps solution 0 only if strictly better than solution 1
+        if i == 0 or not (best_good > good):
+            best_good, best = good, i
+            pnt[0], pnt[1], pnt[2], pnt[3] = s0, s1, s2, s3
+    if _is_intersect(d[0], d[1], pnt[0], pnt[1], d[2], d[3], pnt[2], pnt[3]):
+        return -1.0
+    return _length_circle(pnt[0], pnt[1], pnt[2], pnt[3], best == 1, rad)
 
 
-def _wrap_inside_one(d0, d1, rad):
-    len0, len1 = np.linalg.norm(d0), np.linalg.norm(d1)
-    dif = d1 - d0
-    dd = dif @ dif
+@_jit
+def _wrap_inside(d, rad, pnt):
+    """MuJoCo wrap_inside: one tangent point (pnt[0:2] = pnt[2:4]); 0 if wrapped, -1 if not."""
+    len0 = math.sqrt(d[0] * d[0] + d[1] * d[1])
+    len1 = math.sqrt(d[2] * d[2] + d[3] * d[3])
+    dx, dy = d[2] - d[0], d[3] - d[1]
+    dd = dx * dx + dy * dy
     if len0 <= rad or len1 <= rad or rad < MINVAL or len0 < MINVAL or len1 < MINVAL:
-        return np.zeros(2), False
+        return -1.0
     if dd > MINVAL:
-        a = -(dif @ d0) / dd
-        if 0 < a < 1 and np.linalg.norm(d0 + a * dif) <= rad:
-            return np.zeros(2), False
-    mid = 0.5 * (d0 + d1)
-    fallback = mid / max(np.linalg.norm(mid), MINVAL) * rad
+        a = -(dx * d[0] + dy * d[1]) / dd
+        if 0 < a < 1:
+            tx, ty = d[0] + a * dx, d[1] + a * dy
+            if math.sqrt(tx * tx + ty * ty) <= rad:
+                return -1.0
+    mx, my = 0.5 * (d[0] + d[2]), 0.5 * (d[1] + d[3])
+    mn = math.sqrt(mx * mx + my * my)
+    if mn < MINVAL:
+        mn = MINVAL
+    pnt[0], pnt[1] = rad * mx / mn, rad * my / mn
+    pnt[2], pnt[3] = pnt[0], pnt[1]
     A, B = rad / len0, rad / len1
     cos_g = (len0 * len0 + len1 * len1 - dd) / (2 * len0 * len1)
     if cos_g < -1 + MINVAL:
-        return np.zeros(2), False
+        return -1.0
     if cos_g > 1 - MINVAL:
-        return fallback, True
-    G = np.arccos(cos_g)
+        return 0.0
+    G = math.acos(cos_g)
     z = 1 - 1e-7
-    f = np.arcsin(A * z) + np.arcsin(B * z) - 2 * np.arcsin(z) + G
+    f = math.asin(A * z) + math.asin(B * z) - 2 * math.asin(z) + G
     if f > 0:
-        return fallback, True
-    for _ in range(20):
-        if abs(f) <= 1e-6:
-            break
-        df = A / max(MINVAL, np.sqrt(1 - z * z * A * A)) + B / max(MINVAL, np.sqrt(1 - z * z * B * B)) - 2 / max(MINVAL, np.sqrt(1 - z * z))
+        return 0.0
+    it = 0
+    while it < 20 and abs(f) > 1e-6:
+        df = (A / max(MINVAL, math.sqrt(1 - z * z * A * A)) + B / max(MINVAL, math.sqrt(1 - z * z * B * B))
+              - 2 / max(MINVAL, math.sqrt(1 - z * z)))
         if df > -MINVAL:
-            return fallback, True
+            return 0.0
         z1 = z - f / df
         if z1 > z:
-            return fallback, True
+            return 0.0
         z = z1
-        f = np.arcsin(A * z) + np.arcsin(B * z) - 2 * np.arcsin(z) + G
+        f = math.asin(A * z) + math.asin(B * z) - 2 * math.asin(z) + G
         if f > 1e-6:
-            return fallback, True
+            return 0.0
+        it += 1
+    if it >= 20:
+        return 0.0
+    if d[0] * d[3] - d[1] * d[2] > 0:
+        vx, vy, ang = d[0], d[1], math.asin(z) - math.asin(A * z)
     else:
-        if abs(f) > 1e-6:
-            return fallback, True
-    if d0[0] * d1[1] - d0[1] * d1[0] > 0:
-        vec, ang = d0, np.arcsin(z) - np.arcsin(A * z)
-    else:
-        vec, ang = d1, np.arcsin(z) - np.arcsin(B * z)
-    vec = vec / np.linalg.norm(vec)
-    return rad * np.array([np.cos(ang) * vec[0] - np.sin(ang) * vec[1], np.sin(ang) * vec[0] + np.cos(ang) * vec[1]]), True
+        vx, vy, ang = d[2], d[3], math.asin(z) - math.asin(B * z)
+    vn = math.sqrt(vx * vx + vy * vy)
+    vx, vy = vx / vn, vy / vn
+    pnt[0] = rad * (math.cos(ang) * vx - math.sin(ang) * vy)
+    pnt[1] = rad * (math.sin(ang) * vx + math.cos(ang) * vy)
+    pnt[2], pnt[3] = pnt[0], pnt[1]
+    return 0.0
 
 
-def wrap_points(x0, x1, center, R, radius, cylinder, side, has_side):
-    """Vectorised MuJoCo `mju_wrap` for n wrap instances.
+@_jit
+def _cross(a, b, out):
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
 
-    x0, x1: (n, 3) world end points; center (n, 3), R (n, 3, 3) wrap pose; radius (n,);
-    cylinder (n,) bool; side (n, 3) side-site positions (ignored where not has_side).
-    Returns world tangent points t0, t1 (n, 3), wrapped length (n,), and the wrapped mask.
+
+@_jit
+def _to_local(R, c, x, out):
+    """out = R^T (x - c)."""
+    d0, d1, d2 = x[0] - c[0], x[1] - c[1], x[2] - c[2]
+    for i in range(3):
+        out[i] = R[0, i] * d0 + R[1, i] * d1 + R[2, i] * d2
+
+
+@_jit
+def wrap(x0, x1, center, R, radius, cylinder, side, has_side, w0, w1, work):
+    """MuJoCo mju_wrap: world tangent points in w0, w1; returns wrapped length or -1.
+
+    `work` is scratch space of shape (10, 4).
     """
-    p0, p1, s = np.einsum("nji,knj->kni", R, np.stack([x0, x1, side]) - center)  # local frame
-    a0, n_p0 = _normalize(p0)
-    normal, nrm = _normalize(_cross(p0, p1))
-    # sphere with p0 parallel to p1: MuJoCo picks another normal
-    parallel = nrm < MINVAL
-    if np.any(parallel & ~cylinder):
-        absa = np.abs(a0)
-        idx = np.where((absa[:, 1] > absa[:, 0]) & (absa[:, 1] > absa[:, 2]), 1, 0)
-        idx = np.where((absa[:, 2] > absa[:, 0]) & (absa[:, 2] > absa[:, 1]), 2, idx)
-        alt = np.ones_like(a0)
-        alt[np.arange(len(idx)), idx] = 0.0
-        alt_normal, _ = _normalize(_cross(a0, alt))
-        normal = np.where(parallel[:, None], alt_normal, normal)
-    a1, _ = _normalize(_cross(normal, a0))
-    # 2-D frame of the wrap plane: (axis0, axis1) rows; cylinders use local x, y
-    basis = np.where(cylinder[:, None, None], np.eye(3)[:2], np.stack([a0, a1], axis=1))  # (n, 2, 3)
-    d0, d1, sd = np.einsum("nij,knj->kni", basis, np.stack([p0, p1, s]))
-    sd_dir, sd_norm = _normalize(sd)
-    outside = sd_norm >= radius
-    sd = np.where(outside[:, None], sd_dir * radius[:, None], 0.0)
-    inside = has_side & ~outside
+    p0, p1, s, axis0, axis1, normal, r0, r1 = work[0, :3], work[1, :3], work[2, :3], work[3, :3], work[4, :3], work[5, :3], work[6, :3], work[7, :3]
+    d, pnt = work[8], work[9]
+    _to_local(R, center, x0, p0)
+    _to_local(R, center, x1, p1)
+    n0 = math.sqrt(p0[0] * p0[0] + p0[1] * p0[1] + p0[2] * p0[2])
+    if n0 < MINVAL or math.sqrt(p1[0] * p1[0] + p1[1] * p1[1] + p1[2] * p1[2]) < MINVAL:
+        return -1.0
+    if cylinder:
+        axis0[0], axis0[1], axis0[2] = 1.0, 0.0, 0.0
+        axis1[0], axis1[1], axis1[2] = 0.0, 1.0, 0.0
+    else:
+        for i in range(3):
+            axis0[i] = p0[i] / n0
+        _cross(p0, p1, normal)
+        nrm = math.sqrt(normal[0] ** 2 + normal[1] ** 2 + normal[2] ** 2)
+        if nrm < MINVAL:  # p0 parallel to p1: another normal
+            i = 0
+            if abs(axis0[1]) > abs(axis0[0]) and abs(axis0[1]) > abs(axis0[2]):
+                i = 1
+            if abs(axis0[2]) > abs(axis0[0]) and abs(axis0[2]) > abs(axis0[1]):
+                i = 2
+            alt = r0  # scratch
+            alt[0], alt[1], alt[2] = 1.0, 1.0, 1.0
+            alt[i] = 0.0
+            _cross(axis0, alt, normal)
+            nrm = math.sqrt(normal[0] ** 2 + normal[1] ** 2 + normal[2] ** 2)
+        for i in range(3):
+            normal[i] /= nrm
+        _cross(normal, axis0, axis1)
+        n1 = math.sqrt(axis1[0] ** 2 + axis1[1] ** 2 + axis1[2] ** 2)
+        for i in range(3):
+            axis1[i] /= n1
+    d[0] = p0[0] * axis0[0] + p0[1] * axis0[1] + p0[2] * axis0[2]
+    d[1] = p0[0] * axis1[0] + p0[1] * axis1[1] + p0[2] * axis1[2]
+    d[2] = p1[0] * axis0[0] + p1[1] * axis0[1] + p1[2] * axis0[2]
+    d[3] = p1[0] * axis1[0] + p1[1] * axis1[1] + p1[2] * axis1[2]
+    sd0 = sd1 = 0.0
+    inside = False
+    if has_side:
+        _to_local(R, center, side, s)
+        sd0 = s[0] * axis0[0] + s[1] * axis0[1] + s[2] * axis0[2]
+        sd1 = s[0] * axis1[0] + s[1] * axis1[1] + s[2] * axis1[2]
+        sn = math.sqrt(sd0 * sd0 + sd1 * sd1)
+        if sn >= radius:
+            sd0, sd1 = sd0 * radius / sn, sd1 * radius / sn
+        else:
+            sd0 = sd1 = 0.0
+            inside = True
+    if inside:
+        wlen = _wrap_inside(d, radius, pnt)
+    else:
+        wlen = _wrap_circle(d, sd0, sd1, has_side, radius, pnt)
+    if wlen < 0:
+        return -1.0
+    for i in range(3):
+        r0[i] = axis0[i] * pnt[0] + axis1[i] * pnt[1]
+        r1[i] = axis0[i] * pnt[2] + axis1[i] * pnt[3]
+    if cylinder:
+        L0 = math.sqrt((p0[0] - r0[0]) ** 2 + (p0[1] - r0[1]) ** 2)
+        L1 = math.sqrt((p1[0] - r1[0]) ** 2 + (p1[1] - r1[1]) ** 2)
+        total = L0 + wlen + L1
+        r0[2] = p0[2] + (p1[2] - p0[2]) * L0 / total
+        r1[2] = p0[2] + (p1[2] - p0[2]) * (L0 + wlen) / total
+        height = abs(r1[2] - r0[2])
+        wlen = math.sqrt(wlen * wlen + height * height)
+    for i in range(3):
+        w0[i] = R[i, 0] * r0[0] + R[i, 1] * r0[1] + R[i, 2] * r0[2] + center[i]
+        w1[i] = R[i, 0] * r1[0] + R[i, 1] * r1[1] + R[i, 2] * r1[2] + center[i]
+    return wlen
 
-    t0, t1, wlen, valid = _wrap_circle(d0, d1, sd, has_side, radius)
-    if np.any(inside):
-        pin, vin = _wrap_inside(d0[inside], d1[inside], radius[inside])
-        t0[inside], t1[inside], wlen[inside], valid[inside] = pin, pin, 0.0, vin
-    valid &= (n_p0 >= MINVAL) & (np.linalg.norm(p1, axis=1) >= MINVAL)
 
-    r0, r1 = np.einsum("nij,kni->knj", basis, np.stack([t0, t1]))
-    if np.any(cylinder):
-        L0 = np.hypot(p0[:, 0] - r0[:, 0], p0[:, 1] - r0[:, 1])
-        L1 = np.hypot(p1[:, 0] - r1[:, 0], p1[:, 1] - r1[:, 1])
-        total = np.where(valid, L0 + wlen + L1, 1.0)
-        z0 = p0[:, 2] + (p1[:, 2] - p0[:, 2]) * L0 / total
-        z1 = p0[:, 2] + (p1[:, 2] - p0[:, 2]) * (L0 + wlen) / total
-        r0[:, 2] = np.where(cylinder, z0, r0[:, 2])
-        r1[:, 2] = np.where(cylinder, z1, r1[:, 2])
-        wlen = np.where(cylinder, np.hypot(wlen, z1 - z0), wlen)
-    w0, w1 = np.einsum("nij,knj->kni", R, np.stack([r0, r1])) + center
-    return w0, w1, wlen, valid
+# ------------------------------------------------------------------------ path kernel
+# Written with explicit 3-vector loops: tiny numpy temporaries and BLAS calls would dominate.
+
+@_jit
+def _add_segment(m, P, a, ba, Q, b, bb, revolute, moves, axes, axo, lengths, grad):
+    """Add the straight segment P[a] (body ba) -> Q[b] (body bb) to muscle m."""
+    u0, u1, u2 = Q[b, 0] - P[a, 0], Q[b, 1] - P[a, 1], Q[b, 2] - P[a, 2]
+    L = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    lengths[m] += L
+    if L < MINVAL:
+        return
+    u0, u1, u2 = u0 / L, u1 / L, u2 / L
+    # u . (J_b - J_a); revolute column k: moves * a_k . (p x u) - u . (a_k x o_k)
+    ca0, ca1, ca2 = P[a, 1] * u2 - P[a, 2] * u1, P[a, 2] * u0 - P[a, 0] * u2, P[a, 0] * u1 - P[a, 1] * u0
+    cb0, cb1, cb2 = Q[b, 1] * u2 - Q[b, 2] * u1, Q[b, 2] * u0 - Q[b, 0] * u2, Q[b, 0] * u1 - Q[b, 1] * u0
+    for k in range(axes.shape[0]):
+        if revolute[k]:
+            base = u0 * axo[k, 0] + u1 * axo[k, 1] + u2 * axo[k, 2]
+            ja = axes[k, 0] * ca0 + axes[k, 1] * ca1 + axes[k, 2] * ca2 - base
+            jb = axes[k, 0] * cb0 + axes[k, 1] * cb1 + axes[k, 2] * cb2 - base
+        else:
+            ja = jb = u0 * axes[k, 0] + u1 * axes[k, 1] + u2 * axes[k, 2]
+        grad[m, k] += moves[bb, k] * jb - moves[ba, k] * ja
+
+
+@_jit
+def _path_kernel(R, p, axes, origins, revolute, moves, site_body, site_local, st, wr, wr_body, wr_pos, wr_rot,
+                 wr_radius, wr_cyl, n_muscles):
+    n_sites = site_body.shape[0]
+    P = np.empty((n_sites, 3))
+    for i in range(n_sites):
+        b = site_body[i]
+        for r in range(3):
+            P[i, r] = R[b, r, 0] * site_local[i, 0] + R[b, r, 1] * site_local[i, 1] + R[b, r, 2] * site_local[i, 2] + p[b, r]
+    nc = axes.shape[0]
+    axo = np.empty((nc, 3))
+    for k in range(nc):
+        _cross(axes[k], origins[k], axo[k])
+    lengths = np.zeros(n_muscles)
+    grad = np.zeros((n_muscles, nc))
+    for h in range(st.shape[0]):
+        a, b, m = st[h, 0], st[h, 1], st[h, 2]
+        _add_segment(m, P, a, site_body[a], P, b, site_body[b], revolute, moves, axes, axo, lengths, grad)
+    T = np.empty((2, 3))
+    work = np.empty((10, 4))
+    for h in range(wr.shape[0]):
+        a, b, side, m = wr[h, 0], wr[h, 1], wr[h, 2], wr[h, 3]
+        gb = wr_body[h]
+        Rw = R[gb] @ wr_rot[h]
+        cw = R[gb] @ wr_pos[h] + p[gb]
+        sp = P[side] if side >= 0 else P[a]
+        wlen = wrap(P[a], P[b], cw, Rw, wr_radius[h], wr_cyl[h], sp, side >= 0, T[0], T[1], work)
+        if wlen < 0:
+            _add_segment(m, P, a, site_body[a], P, b, site_body[b], revolute, moves, axes, axo, lengths, grad)
+        else:
+            _add_segment(m, P, a, site_body[a], T, 0, gb, revolute, moves, axes, axo, lengths, grad)
+            _add_segment(m, T, 1, gb, P, b, site_body[b], revolute, moves, axes, axo, lengths, grad)
+            lengths[m] += wlen
+    return lengths, grad
 
 
 class MusclePaths:
-    """Vectorised path geometry of all muscles of a ModelSpec on a given set of bodies.
+    """Path geometry of all muscles of a ModelSpec on a given set of bodies.
 
     `bodies` are the names of the bodies whose world poses are supplied to `compute`
     (in that order); `coord_kinds[k]` is "hinge" or "slide" and `coord_moves[b, k]` is 1
@@ -224,19 +348,16 @@ class MusclePaths:
 
     def __init__(self, spec: ModelSpec, bodies: list[str], coord_kinds: list[str], coord_moves: np.ndarray):
         self.n_muscles = len(spec.muscles)
-        self.n_coords = len(coord_kinds)
         body_index = {b: i for i, b in enumerate(bodies)}
-        self._revolute = np.array([k == "hinge" for k in coord_kinds])
-        self._moves = np.asarray(coord_moves, dtype=float)  # (n_bodies, n_coords)
+        self._revolute = np.array([k == "hinge" for k in coord_kinds], dtype=np.bool_)
+        self._moves = np.ascontiguousarray(coord_moves, dtype=float)  # (n_bodies, n_coords)
 
         used_sites: dict[int, int] = {}
 
         def site_slot(s: int) -> int:
-            if s not in used_sites:
-                used_sites[s] = len(used_sites)
-            return used_sites[s]
+            return used_sites.setdefault(s, len(used_sites))
 
-        straight, wraps = [], []  # straight: (site_a, site_b, muscle); wraps: (a, b, wrap, side, muscle)
+        straight, wraps, geoms = [], [], []  # straight: (a, b, muscle); wraps: (a, b, side, muscle)
         for m, mus in enumerate(spec.muscles):
             path = mus.path
             j = 0
@@ -248,37 +369,22 @@ class MusclePaths:
                     if j + 2 >= len(path) or path[j + 2].kind != "site":
                         raise ValueError(f"muscle {mus.name}: a wrap must sit between two sites (element {j + 1})")
                     side = -1 if nxt.side_site < 0 else site_slot(nxt.side_site)
-                    wraps.append((site_slot(a.index), site_slot(path[j + 2].index), nxt.index, side, m))
+                    wraps.append((site_slot(a.index), site_slot(path[j + 2].index), side, m))
+                    geoms.append(spec.wraps[nxt.index])
                     j += 2
                 else:
                     straight.append((site_slot(a.index), site_slot(nxt.index), m))
                     j += 1
         order = sorted(used_sites, key=used_sites.get)
-        self._site_body = np.array([body_index[spec.sites[s].body] for s in order])
-        self._site_local = np.array([spec.sites[s].pos for s in order])
-        st = np.array(straight, dtype=int).reshape(-1, 3)
-        self._st_a, self._st_b, self._st_m = st[:, 0], st[:, 1], st[:, 2]
-        wr = np.array(wraps, dtype=int).reshape(-1, 5)
-        self._wr_a, self._wr_b, self._wr_m = wr[:, 0], wr[:, 1], wr[:, 4]
-        self._wr_has_side = wr[:, 3] >= 0
-        self._wr_side = np.where(self._wr_has_side, wr[:, 3], 0)
-        geoms = [spec.wraps[w] for w in wr[:, 2]]
-        self._wr_body = np.array([body_index[g.body] for g in geoms], dtype=int)
-        self._wr_pos = np.array([g.pos for g in geoms]).reshape(-1, 3)
-        self._wr_rot = np.array([_quat_matrix(g.quat) for g in geoms]).reshape(-1, 3, 3)
+        self._site_body = np.array([body_index[spec.sites[s].body] for s in order], dtype=np.int64)
+        self._site_local = np.array([spec.sites[s].pos for s in order], dtype=float)
+        self._st = np.array(straight, dtype=np.int64).reshape(-1, 3)
+        self._wr = np.array(wraps, dtype=np.int64).reshape(-1, 4)
+        self._wr_body = np.array([body_index[g.body] for g in geoms], dtype=np.int64)
+        self._wr_pos = np.array([g.pos for g in geoms], dtype=float).reshape(-1, 3)
+        self._wr_rot = np.array([quat_matrix(g.quat) for g in geoms], dtype=float).reshape(-1, 3, 3)
         self._wr_radius = np.array([g.radius for g in geoms], dtype=float)
-        self._wr_cyl = np.array([g.kind == "cylinder" for g in geoms], dtype=bool)
-
-        # straight pieces in a fixed order: site->site hops, then per wrap hop
-        # site->tangent, tangent->site (used when wrapped) and site->site (when not)
-        sb, wb = self._site_body, self._wr_body
-        self._seg_start_body = np.concatenate([sb[self._st_a], sb[self._wr_a], wb, sb[self._wr_a]])
-        self._seg_end_body = np.concatenate([sb[self._st_b], wb, sb[self._wr_b], sb[self._wr_b]])
-        seg_muscle = np.concatenate([self._st_m, self._wr_m, self._wr_m, self._wr_m])
-        self._seg_weight = np.ones(len(seg_muscle))
-        self._incidence = sparse.csr_matrix(
-            (np.ones(len(seg_muscle)), (seg_muscle, np.arange(len(seg_muscle)))), shape=(self.n_muscles, len(seg_muscle))
-        )
+        self._wr_cyl = np.array([g.kind == "cylinder" for g in geoms], dtype=np.bool_)
 
     def compute(self, R_body: np.ndarray, p_body: np.ndarray, axes: np.ndarray, origins: np.ndarray, v: np.ndarray | None = None) -> PathState:
         """Lengths and moment arms from body poses (R (nb, 3, 3), p (nb, 3)) and coordinate axes.
@@ -286,46 +392,12 @@ class MusclePaths:
         axes, origins: (n_coords, 3) world joint axes and points on them (origins unused for
         slides). With `v` (generalized velocities), lengthening velocities are returned too.
         """
-        P = (R_body[self._site_body] @ self._site_local[:, :, None])[:, :, 0] + p_body[self._site_body]
-        Rwb = R_body[self._wr_body]
-        Rw = Rwb @ self._wr_rot
-        cw = (Rwb @ self._wr_pos[:, :, None])[:, :, 0] + p_body[self._wr_body]
-        x0, x1 = P[self._wr_a], P[self._wr_b]
-        t0, t1, wlen, wrapped = wrap_points(x0, x1, cw, Rw, self._wr_radius, self._wr_cyl, P[self._wr_side], self._wr_has_side)
-
-        # all straight pieces, in the fixed order of self._seg_*: sites, site->t0, t1->site, site->site
-        starts = np.concatenate([P[self._st_a], x0, t1, x0])
-        ends = np.concatenate([P[self._st_b], t0, x1, x1])
-        n_st = len(self._st_m)
-        weight = self._seg_weight.copy()
-        nw = len(self._wr_m)
-        weight[n_st:n_st + nw] = wrapped
-        weight[n_st + nw:n_st + 2 * nw] = wrapped
-        weight[n_st + 2 * nw:] = ~wrapped
-
-        u, seglen = _normalize(ends - starts)
-        lengths = self._incidence @ (weight * seglen)
-        lengths += np.bincount(self._wr_m, weights=np.where(wrapped, wlen, 0.0), minlength=self.n_muscles)
-
-        # d(length)/dq = u . (J_end - J_start).  Column k of the Jacobian of point p on body b:
-        #   revolute: moves[b, k] * a_k x (p - o_k);  prismatic: moves[b, k] * a_k.
-        # u . (a x (p - o)) = a . (p x u) - u . (a x o)
-        lin = u @ axes.T
-        u_axo = u @ _cross(axes, origins).T
-        def column_terms(p):
-            rot = _cross(p, u) @ axes.T - u_axo
-            return np.where(self._revolute, rot, lin)
-        dl = self._moves[self._seg_end_body] * column_terms(ends) - self._moves[self._seg_start_body] * column_terms(starts)
-        grad = self._incidence @ (dl * weight[:, None])
+        lengths, grad = _path_kernel(
+            np.ascontiguousarray(R_body), np.ascontiguousarray(p_body), axes, origins, self._revolute, self._moves,
+            self._site_body, self._site_local, self._st, self._wr, self._wr_body, self._wr_pos, self._wr_rot,
+            self._wr_radius, self._wr_cyl, self.n_muscles,
+        )
         state = PathState(lengths=lengths, moment_arms=-grad)
         if v is not None:
             state.velocities = grad @ np.asarray(v, dtype=float)
         return state
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross product of (n, 3) arrays (cheaper than np.cross for small n)."""
-    return np.stack(
-        [a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2], a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]],
-        axis=1,
-    )

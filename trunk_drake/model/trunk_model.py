@@ -88,12 +88,9 @@ class TrunkModel:
         plant = self.plant
         poses = np.array([X.GetAsMatrix34() for X in plant.get_body_poses_output_port().Eval(context)])
         R, p = poses[:, :, :3], poses[:, :, 3]
-        axes = np.empty((len(self._joints), 3))
-        origins = np.empty((len(self._joints), 3))
-        for k, (joint, body_index, X_BM, axis_M) in enumerate(self._joints):
-            R_WM = R[body_index] @ X_BM.rotation().matrix()
-            axes[k] = R_WM @ axis_M
-            origins[k] = R[body_index] @ X_BM.translation() + p[body_index]
+        Rj = R[self._joint_body]
+        axes = (Rj @ self._joint_axis[:, :, None])[:, :, 0]
+        origins = (Rj @ self._joint_anchor[:, :, None])[:, :, 0] + p[self._joint_body]
         return self._paths.compute(R, p, axes, origins, v)
 
     def path_state(self, q, v=None) -> PathState:
@@ -118,13 +115,19 @@ class TrunkModel:
 
     # ---- set-up --------------------------------------------------------------------
     def _init_joints(self):
-        plant = self.plant
-        self._joints = []
+        """Per coordinate: the body carrying its child frame, axis and anchor in that body."""
+        body, axis, anchor = [], [], []
         for c in self.coordinate_info:
-            joint = plant.GetJointByName(c.name)
+            joint = self.plant.GetJointByName(c.name)
             frame = joint.frame_on_child()
-            axis = joint.revolute_axis() if c.kind == "hinge" else joint.translation_axis()
-            self._joints.append((joint, int(frame.body().index()), frame.GetFixedPoseInBodyFrame(), np.asarray(axis)))
+            X_BM = frame.GetFixedPoseInBodyFrame()
+            axis_M = joint.revolute_axis() if c.kind == "hinge" else joint.translation_axis()
+            body.append(int(frame.body().index()))
+            axis.append(X_BM.rotation().matrix() @ np.asarray(axis_M))
+            anchor.append(X_BM.translation())
+        self._joint_body = np.array(body, dtype=int)
+        self._joint_axis = np.array(axis, dtype=float).reshape(-1, 3)
+        self._joint_anchor = np.array(anchor, dtype=float).reshape(-1, 3)
 
 
 def _build(spec: ModelSpec, dofs: str, pelvis_mass: float | None, pelvis_free: bool) -> TrunkModel:
