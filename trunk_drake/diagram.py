@@ -127,7 +127,8 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
     if pelvis_mode == "prescribed":
         direction = _anterior_direction(base)
         pert = builder.AddNamedSystem("perturbation", PrescribedPelvisMotion(plant, perturbation, direction))
-        builder.Connect(pert.GetOutputPort("spatial_forces"), plant.get_applied_spatial_force_input_port())
+        builder.Connect(plant.get_state_output_port(), pert.GetInputPort("plant_state"))
+        forces.append(pert.GetOutputPort("generalized_force"))
     elif pelvis_mode == "force":
         if perturbation is None:
             raise ValueError("pelvis='force' needs a perturbation signal")

@@ -53,6 +53,28 @@ def _name(m, objtype, i) -> str:
     return mujoco.mj_id2name(m, objtype, i)
 
 
+def _landmarks(m, body_names) -> tuple[SiteSpec, ...]:
+    """Thoracic vertebral-body centres T1..T12 (centres of MyoTorso's vertebra meshes, which
+    MuJoCo places at the mesh centroid) and the shoulder sites."""
+    import re
+
+    import mujoco
+
+    out = []
+    for g in range(m.ngeom):
+        mesh = int(m.geom_dataid[g])
+        if m.geom_type[g] != mujoco.mjtGeom.mjGEOM_MESH or mesh < 0:
+            continue
+        match = re.search(r"thoracic(\d+)", _name(m, mujoco.mjtObj.mjOBJ_MESH, mesh) or "")
+        if match:
+            out.append(SiteSpec(f"T{int(match.group(1))}", body_names[m.geom_bodyid[g]], m.geom_pos[g].copy()))
+    for side in ("l", "r"):
+        s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, f"Shoulder_{side}")
+        if s >= 0:
+            out.append(SiteSpec(f"shoulder_{side}", body_names[m.site_bodyid[s]], m.site_pos[s].copy()))
+    return tuple(sorted(out, key=lambda s: s.name))
+
+
 @lru_cache(maxsize=1)
 def read_myotorso() -> ModelSpec:
     """MyoTorso geometry, inertia, joints, path sites, wraps and muscles (without Hill lengths)."""
@@ -152,6 +174,7 @@ def read_myotorso() -> ModelSpec:
 
     return ModelSpec(
         name="myotorso",
+        landmarks=_landmarks(m, body_names),
         bodies=tuple(bodies),
         joints=tuple(joints),
         sites=sites,

@@ -108,6 +108,7 @@ class ModelSpec:
     wraps: tuple[WrapSpec, ...]
     muscles: tuple[MuscleSpec, ...]
     couplings: tuple[CouplingSpec, ...] = ()
+    landmarks: tuple[SiteSpec, ...] = ()  # named anatomical points (e.g. vertebral body centres)
     root_pos: np.ndarray = field(default_factory=lambda: np.zeros(3))  # root body origin in world
     root_quat: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
     gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -9.81]))
@@ -124,6 +125,12 @@ class ModelSpec:
             if j.name == name:
                 return j
         raise KeyError(f"no joint named {name!r}; joints: {[j.name for j in self.joints]}")
+
+    def landmark(self, name: str) -> SiteSpec:
+        for s in self.landmarks:
+            if s.name == name:
+                return s
+        raise KeyError(f"no landmark named {name!r}; landmarks: {[s.name for s in self.landmarks]}")
 
     @property
     def muscle_names(self) -> list[str]:

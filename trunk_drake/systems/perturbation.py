@@ -4,9 +4,7 @@
 from __future__ import annotations
 
 import numpy as np
-from pydrake.common.value import AbstractValue
-from pydrake.multibody.math import SpatialForce
-from pydrake.multibody.plant import ExternallyAppliedSpatialForce
+from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import LeafSystem
 
 
@@ -14,35 +12,29 @@ class PrescribedPelvisMotion(LeafSystem):
     """Pelvis welded to a frame that moves with the platform: the plant is simulated in that
     translating frame, where every body feels the inertial force -m_i a_platform(t).
 
-    Output ``spatial_forces`` (for the plant's applied-spatial-force input) and ``platform``
-    [x, v, a] (m, m/s, m/s^2) along `direction` (world unit vector, anterior).
+    Their sum is the generalized force ``-a(t) M J_com^T d`` (M total mass, J_com the
+    centre-of-mass Jacobian, d the world direction of motion). Input ``plant_state``;
+    outputs ``generalized_force`` and ``platform`` [x, v, a] (m, m/s, m/s^2).
     """
 
     def __init__(self, plant, signal, direction):
         super().__init__()
-        self._signal = signal
+        self._plant, self._signal = plant, signal
         self._dir = np.asarray(direction, dtype=float)
-        self._bodies = []
-        for i in range(plant.num_bodies()):
-            body = plant.get_body(_body_index(i))
-            mass = body.default_mass()
-            if mass > 0:
-                self._bodies.append((body.index(), mass, body.default_com()))
-        self.DeclareAbstractOutputPort(
-            "spatial_forces", lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]), self._calc_forces
-        )
-        self.DeclareVectorOutputPort("platform", 3, self._calc_platform)
+        self._scratch = plant.CreateDefaultContext()
+        self._mass = plant.CalcTotalMass(self._scratch)
+        self._nq, nv = plant.num_positions(), plant.num_velocities()
+        self.DeclareVectorInputPort("plant_state", self._nq + nv)
+        self.DeclareVectorOutputPort("generalized_force", nv, self._calc_force)
+        self.DeclareVectorOutputPort("platform", 3, self._calc_platform, prerequisites_of_calc={self.time_ticket()})
 
-    def _calc_forces(self, context, output):
-        _, _, acc = self._signal.evaluate(context.get_time())
-        forces = []
-        for index, mass, com in self._bodies:
-            f = ExternallyAppliedSpatialForce()
-            f.body_index = index
-            f.p_BoBq_B = com
-            f.F_Bq_W = SpatialForce(np.zeros(3), -mass * acc * self._dir)
-            forces.append(f)
-        output.set_value(forces)
+    def _calc_force(self, context, output):
+        plant, scratch = self._plant, self._scratch
+        plant.SetPositions(scratch, self.get_input_port(0).Eval(context)[: self._nq])
+        world = plant.world_frame()
+        J = plant.CalcJacobianCenterOfMassTranslationalVelocity(scratch, JacobianWrtVariable.kV, world, world)
+        acc = self._signal.evaluate(context.get_time())[2]
+        output.SetFromVector(-acc * self._mass * (J.T @ self._dir))
 
     def _calc_platform(self, context, output):
         output.SetFromVector(np.asarray(self._signal.evaluate(context.get_time()), dtype=float))
@@ -56,7 +48,7 @@ class PelvisForcePerturbation(LeafSystem):
         super().__init__()
         self._signal, self._nv, self._i, self._mass = signal, nv, pelvis_index, float(pelvis_mass)
         self.DeclareVectorOutputPort("generalized_force", nv, self._calc_force)
-        self.DeclareVectorOutputPort("platform", 3, self._calc_platform)
+        self.DeclareVectorOutputPort("platform", 3, self._calc_platform, prerequisites_of_calc={self.time_ticket()})
 
     def _calc_force(self, context, output):
         tau = np.zeros(self._nv)
@@ -66,8 +58,3 @@ class PelvisForcePerturbation(LeafSystem):
     def _calc_platform(self, context, output):
         output.SetFromVector(np.asarray(self._signal.evaluate(context.get_time()), dtype=float))
 
-
-def _body_index(i):
-    from pydrake.multibody.tree import BodyIndex
-
-    return BodyIndex(i)
