@@ -67,6 +67,7 @@ class TrunkDiagram:
     perturbation: object | None
     loggers: dict[str, VectorLogSink]
     fe_indices: np.ndarray  # indices of the lumbar flexion-extension coordinates in q
+    feedforward: np.ndarray  # the constant feed-forward excitation
 
 
 def plant_model_for(model, pelvis: str):
@@ -156,7 +157,7 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
         log("platform", pert.GetOutputPort("platform"))
     diagram = builder.Build()
     diagram.set_name("trunk")
-    return TrunkDiagram(diagram, base, opts, plant, paths, muscles, reflex, bushings, pert, loggers, fe)
+    return TrunkDiagram(diagram, base, opts, plant, paths, muscles, reflex, bushings, pert, loggers, fe, feedforward)
 
 
 def _anterior_direction(model) -> np.ndarray:

@@ -27,8 +27,10 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass
+from functools import cached_property
 from typing import NamedTuple
 
+import numba
 import numpy as np
 
 __all__ = [
@@ -38,7 +40,7 @@ __all__ = [
     "force_velocity_derivatives", "fiber_velocity_from_force", "tendon_force_length",
     "tendon_force_length_derivative", "parallelogram_height", "minimum_fiber_length",
     "pennation_angle", "clamp_activation", "activation_derivative", "RigidKinematics",
-    "rigid_kinematics", "rigid_tendon",
+    "rigid_kinematics", "rigid_tendon", "rigid_tendon_force",
     "rigid_tendon_force_split", "rigid_tendon_derivatives", "compliant_tendon",
     "equilibrium_fiber_length",
 ]
@@ -163,6 +165,11 @@ class MuscleParameters:
     def n_muscles(self) -> int:
         return self.max_isometric_force.shape[0]
 
+    @cached_property
+    def parallelogram_height(self) -> np.ndarray:
+        """Constant fiber 'thickness' ``l_opt sin(alpha_opt)`` (m), computed once."""
+        return self.optimal_fiber_length * np.sin(self.pennation_angle_at_optimal)
+
 
 @dataclass
 class MuscleState:
@@ -245,6 +252,22 @@ def _fv_shape(activation, constants):
     return c, k, x0, v0, s0
 
 
+@numba.vectorize(["float64(float64, float64, float64, float64, float64)"], cache=True)
+def _force_velocity(v, activation, af, flen, threshold):
+    """Scalar core of :func:`force_velocity` (compiled, broadcast over arrays)."""
+    c = 0.25 + 0.75 * activation
+    if v <= -c:
+        return 0.0
+    if v <= 0.0:
+        return (c + v) / (c - v / af)
+    k = (2.0 + 2.0 / af) / (flen - 1.0)
+    x0 = threshold * flen
+    v0 = c * (x0 - 1.0) / (k * (flen - x0))
+    if v < v0:
+        return (c + v * k * flen) / (c + v * k)
+    return x0 + (v - v0) * k * (flen - x0) ** 2 / (c * (flen - 1.0))
+
+
 def force_velocity(norm_fiber_velocity, activation,
                    constants: ThelenConstants = THESIS_CONSTANTS):
     """Force-velocity multiplier f_V(v, a) of OpenSim's Thelen2003Muscle.
@@ -254,14 +277,8 @@ def force_velocity(norm_fiber_velocity, activation,
     between, 1 at v = 0, approaching ``flen`` when lengthening, linearly extrapolated
     beyond ``fv_extrapolation_threshold * flen``. ``activation`` is used as given.
     """
-    v = np.asarray(norm_fiber_velocity, dtype=float)
-    c, k, x0, v0, s0 = _fv_shape(activation, constants)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        concentric = (c + v) / (c - v / constants.af)
-        eccentric = (c + v * k * constants.flen) / (c + v * k)
-        extrapolated = x0 + (v - v0) * s0
-    return np.where(v <= -c, 0.0,
-                    np.where(v <= 0.0, concentric, np.where(v < v0, eccentric, extrapolated)))
+    return _force_velocity(np.asarray(norm_fiber_velocity, dtype=float), np.asarray(activation, dtype=float),
+                           constants.af, constants.flen, constants.fv_extrapolation_threshold)
 
 
 def force_velocity_derivatives(norm_fiber_velocity, activation,
@@ -331,7 +348,7 @@ def tendon_force_length_derivative(tendon_strain,
 
 def parallelogram_height(params: MuscleParameters) -> np.ndarray:
     """Constant fiber 'thickness' ``l_opt sin(alpha_opt)`` (m)."""
-    return params.optimal_fiber_length * np.sin(params.pennation_angle_at_optimal)
+    return params.parallelogram_height
 
 
 def minimum_fiber_length(params: MuscleParameters,
@@ -431,6 +448,21 @@ def rigid_kinematics(l_mt, v_mt, params: MuscleParameters,
                            passive_force_length(l_n, constants), clamped)
 
 
+def _rigid_fiber_forces(a, k: RigidKinematics, params, constants):
+    """f_V and the active and passive fiber forces (N) for clamped activation `a`."""
+    fv = np.where(k.clamped, 1.0, force_velocity(k.normalized_fiber_velocity, a, constants))
+    f_max = params.max_isometric_force
+    active = np.where(k.clamped, 0.0, f_max * a * k.active_force_length * fv)
+    return fv, active, k.passive_force_length * f_max
+
+
+def rigid_tendon_force(activation, kinematics: RigidKinematics, params: MuscleParameters,
+                       constants: ThelenConstants = THESIS_CONSTANTS) -> np.ndarray:
+    """Tendon force (N) only, the per-step hot path of :func:`rigid_tendon`."""
+    _, active, passive = _rigid_fiber_forces(clamp_activation(activation, constants), kinematics, params, constants)
+    return (active + passive) * kinematics.cos_pennation
+
+
 def rigid_tendon(activation, l_mt, v_mt, params: MuscleParameters,
                  constants: ThelenConstants = THESIS_CONSTANTS,
                  kinematics: RigidKinematics | None = None) -> MuscleState:
@@ -445,10 +477,7 @@ def rigid_tendon(activation, l_mt, v_mt, params: MuscleParameters,
     """
     a = clamp_activation(activation, constants)
     k = kinematics if kinematics is not None else rigid_kinematics(l_mt, v_mt, params, constants)
-    f_max = params.max_isometric_force
-    fv = np.where(k.clamped, 1.0, force_velocity(k.normalized_fiber_velocity, a, constants))
-    active = np.where(k.clamped, 0.0, f_max * a * k.active_force_length * fv)
-    passive = k.passive_force_length * f_max
+    fv, active, passive = _rigid_fiber_forces(a, k, params, constants)
     zeros = np.zeros_like(k.fiber_length)
     return MuscleState(
         activation=np.broadcast_to(a, zeros.shape).copy(), fiber_length=k.fiber_length,

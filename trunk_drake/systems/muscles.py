@@ -70,7 +70,8 @@ class MuscleSystem(LeafSystem):
             "activation", n, lambda c, o: o.SetFromVector(c.get_continuous_state_vector().CopyToVector()[:n]),
             prerequisites_of_calc={self.all_state_ticket()},
         )
-        for name in ("tendon_force", "normalized_fiber_length", "normalized_fiber_velocity", "fiber_length"):
+        self.DeclareVectorOutputPort("tendon_force", n, lambda c, o: o.SetFromVector(self._tendon_force(c)), prerequisites_of_calc=state_and_path)
+        for name in ("normalized_fiber_length", "normalized_fiber_velocity", "fiber_length"):
             self.DeclareVectorOutputPort(name, n, self._field(name), prerequisites_of_calc=state_and_path)
         self.DeclareVectorOutputPort("generalized_force", nv, self._calc_generalized_force, prerequisites_of_calc=state_and_path)
 
@@ -85,14 +86,24 @@ class MuscleSystem(LeafSystem):
     def muscle_state(self, context) -> thelen.MuscleState:
         return self._state_port.Eval(context)
 
+    def _kinematics(self, path) -> thelen.RigidKinematics:
+        if path is not self._kin_path:  # memo: the fiber kinematics depend only on the path
+            self._kin = thelen.rigid_kinematics(path.lengths, path.velocities, self.params, self.constants)
+            self._kin_path = path
+        return self._kin
+
+    def _tendon_force(self, context) -> np.ndarray:
+        if self.tendon == "compliant":
+            return self.muscle_state(context).tendon_force
+        x = context.get_continuous_state_vector().CopyToVector()
+        force = thelen.rigid_tendon_force(x, self._kinematics(self._path.Eval(context)), self.params, self.constants)
+        return force if self.mask is None else force * self.mask
+
     def _calc_state(self, context, output):
         x = context.get_continuous_state_vector().CopyToVector()
         path = self._path.Eval(context)
         if self.tendon == "rigid":
-            if path is not self._kin_path:  # memo: the fiber kinematics depend only on the path
-                self._kin = thelen.rigid_kinematics(path.lengths, path.velocities, self.params, self.constants)
-                self._kin_path = path
-            value = thelen.rigid_tendon(x, path.lengths, path.velocities, self.params, self.constants, self._kin)
+            value = thelen.rigid_tendon(x, path.lengths, path.velocities, self.params, self.constants, self._kinematics(path))
         else:
             value = thelen.compliant_tendon(x[: self.n], x[self.n :], path.lengths, self.params, self.constants)
         if self.mask is not None:
@@ -100,10 +111,13 @@ class MuscleSystem(LeafSystem):
         output.set_value(value)
 
     def _field(self, name):
+        """Fiber kinematics: from the path alone with rigid tendons, else from the full state."""
+        if self.tendon == "rigid" and name != "fiber_length":
+            return lambda c, o: o.SetFromVector(getattr(self._kinematics(self._path.Eval(c)), name))
         return lambda c, o: o.SetFromVector(getattr(self.muscle_state(c), name))
 
     def _calc_generalized_force(self, context, output):
-        output.SetFromVector(self._path.Eval(context).moment_arms.T @ self.muscle_state(context).tendon_force)
+        output.SetFromVector(self._path.Eval(context).moment_arms.T @ self._tendon_force(context))
 
     def DoCalcTimeDerivatives(self, context, derivatives):  # noqa: N802 (Drake API)
         x = context.get_continuous_state_vector().CopyToVector()
