@@ -79,9 +79,10 @@ def plant_model_for(model, pelvis: str):
     return model.variant(pelvis_free=(pelvis == "force"))
 
 
-def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation=None, log_period: float = 0.01) -> TrunkDiagram:
+def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation=None, log_period: float = 0.0) -> TrunkDiagram:
     """Build the diagram for `model` (sagittal). `perturbation` is a platform signal with
-    `evaluate(t) -> (x, v, a)` (e.g. `trunk_drake.signals.make_multisine(...)`), or None."""
+    `evaluate(t) -> (x, v, a)` (e.g. `trunk_drake.signals.make_multisine(...)`), or None.
+    Loggers record every integrator step (``log_period=0``) or at a fixed period."""
     opts = options or TrunkOptions()
     pelvis_mode = opts.pelvis if perturbation is not None else ("none" if opts.pelvis == "prescribed" else opts.pelvis)
     if opts.pelvis == "force":

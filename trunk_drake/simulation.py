@@ -16,7 +16,8 @@ from trunk_drake.metadata import run_metadata
 
 DEFAULT_INTEGRATOR = "radau3"  # L-stable: the vertebral damping modes reach ~4000 1/s
 DEFAULT_ACCURACY = 1e-2
-DEFAULT_LOG_RATE = 100.0  # Hz; also the integrator's maximum step (1 / rate)
+DEFAULT_LOG_RATE = 100.0  # Hz, uniform output grid (step-wise logs are resampled onto it)
+MAX_STEP = 0.0125  # s; longer steps make Newton fail at the reflexes' kinks (measured: 14 ms ok, 20 ms not)
 FIXED_STEP_INTEGRATORS = ("explicit_euler", "semi_explicit_euler", "runge_kutta2")
 DIVERGENCE_ANGLE = 1.6  # rad; a lumbar joint beyond this has left any physiological range
 DIVERGENCE_SPEED = 50.0  # rad/s
@@ -145,14 +146,17 @@ def divergence_message(td: TrunkDiagram, root_context, q, v, names) -> str:
 
 def simulate(model, duration: float | None = None, perturbation="multisine", bandwidth: float = 1.0, seed: int = 0,
              options: TrunkOptions | None = None, integrator: str = DEFAULT_INTEGRATOR, accuracy: float = DEFAULT_ACCURACY,
-             log_rate: float = DEFAULT_LOG_RATE, progress: bool = False, **option_overrides) -> SimulationResult:
+             log_rate: float = DEFAULT_LOG_RATE, max_step: float | None = None, progress: bool = False,
+             **option_overrides) -> SimulationResult:
     """Simulate the sagittal trunk model (pelvis perturbation, muscles, reflexes, bushings).
 
     `perturbation`: "multisine" (default: 20 s period, 0.2 Hz to `bandwidth` Hz, 2 s fades,
     seeded), None (no perturbation: settling under gravity), or any object with
     ``evaluate(t) -> (x, v, a)`` and a ``duration``. `duration` defaults to the signal's
-    duration (or 5 s without perturbation). Other keyword arguments override fields of
-    `TrunkOptions` (e.g. ``kp=0.2, kv=0.1, tendon="compliant"``).
+    duration (or 5 s without perturbation). Every integrator step is logged and the
+    histories are resampled (shape-preserving cubic, as the thesis did) onto a uniform grid
+    of `log_rate` Hz. `max_step` defaults to min(12.5 ms, 1 / (10 * bandwidth)). Other
+    keyword arguments override fields of `TrunkOptions` (e.g. ``kp=0.2, tendon="compliant"``).
     """
     opts = dataclasses.replace(options or TrunkOptions(), **option_overrides)
     signal = _perturbation(perturbation, bandwidth, seed)
@@ -162,9 +166,11 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
         raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
     if log_rate <= 0:
         raise ValueError(f"log_rate must be positive (Hz), got {log_rate!r}")
-    td = build_trunk_diagram(model, opts, signal, log_period=1.0 / log_rate)
+    if max_step is None:
+        max_step = min(MAX_STEP, 0.1 / bandwidth)
+    td = build_trunk_diagram(model, opts, signal)
     simulator = Simulator(td.diagram)
-    ResetIntegratorFromFlags(simulator, integrator, 1.0 / log_rate)
+    ResetIntegratorFromFlags(simulator, integrator, max_step)
     integ = simulator.get_mutable_integrator()
     if integrator not in FIXED_STEP_INTEGRATORS:
         integ.set_target_accuracy(accuracy)
@@ -181,7 +187,7 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
     except RuntimeError as err:
         raise SimulationError(str(err)) from None
     wall = _time.perf_counter() - wall
-    return _collect(td, simulator, wall, integrator, accuracy, signal, seed, bandwidth)
+    return _collect(td, simulator, wall, integrator, accuracy, signal, seed, bandwidth, duration, log_rate)
 
 
 def _perturbation(perturbation, bandwidth, seed):
@@ -212,15 +218,20 @@ def _advance(simulator, duration, progress):
             bar.update(t - bar.n)
 
 
-def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, seed, bandwidth) -> SimulationResult:
+def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, seed, bandwidth, duration, log_rate) -> SimulationResult:
+    from trunk_drake.signals.resample import resample_pchip
+
     ctx = simulator.get_context()
-    logs = {name: sink.FindLog(ctx) for name, sink in td.loggers.items()}
-    t = logs["state"].sample_times()
-    x = logs["state"].data().T
+    t = np.arange(int(np.floor(duration * log_rate + 1e-9)) + 1) / log_rate
+    logs = {}
+    for name, sink in td.loggers.items():
+        log = sink.FindLog(ctx)
+        logs[name] = resample_pchip(log.sample_times(), log.data().T, t, drop_duplicates=True)
+    x = logs["state"]
     nq = td.plant.num_positions()
     q, v = x[:, :nq], x[:, nq:]
     coords = list(td.model.coordinates)
-    platform = logs["platform"].data().T if "platform" in logs else np.zeros((len(t), 3))
+    platform = logs["platform"] if "platform" in logs else np.zeros((len(t), 3))
     if "pelvis_tx" not in coords:  # prescribed mode: the pelvis moves exactly with the platform
         coords = ["pelvis_tx", *coords]
         q = np.column_stack([platform[:, 0], q])
@@ -239,9 +250,9 @@ def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, se
     opts["constants"] = dataclasses.asdict(td.options.constants)
     return SimulationResult(
         time=t, coordinates=coords, q=q, v=v, lumbar_rotation=x[:, td.fe_indices].sum(axis=1), muscles=list(td.model.muscles),
-        activation=logs["activation"].data().T, excitation=logs["excitation"].data().T,
-        muscle_force=logs["tendon_force"].data().T, normalized_fiber_length=logs["normalized_fiber_length"].data().T,
-        normalized_fiber_velocity=logs["normalized_fiber_velocity"].data().T, fiber_length=logs["fiber_length"].data().T,
+        activation=logs["activation"], excitation=logs["excitation"], muscle_force=logs["tendon_force"],
+        normalized_fiber_length=logs["normalized_fiber_length"], normalized_fiber_velocity=logs["normalized_fiber_velocity"],
+        fiber_length=logs["fiber_length"],
         platform=platform, stats=stats, wall_time_s=wall, options=opts,
         metadata=run_metadata(td.model, seed=seed, bandwidth=bandwidth, perturbation=getattr(signal, "to_dict", lambda: None)()),
     )

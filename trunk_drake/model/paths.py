@@ -280,7 +280,7 @@ def wrap(x0, x1, center, R, radius, cylinder, side, has_side, w0, w1, work):
 # ------------------------------------------------------------------------ path kernel
 # Written with explicit 3-vector loops: tiny numpy temporaries and BLAS calls would dominate.
 
-@_jit
+@numba.njit(cache=True, inline="always")
 def _add_segment(m, P, a, ba, Q, b, bb, revolute, moves, axes, axo, lengths, grad):
     """Add the straight segment P[a] (body ba) -> Q[b] (body bb) to muscle m."""
     u0, u1, u2 = Q[b, 0] - P[a, 0], Q[b, 1] - P[a, 1], Q[b, 2] - P[a, 2]
@@ -322,11 +322,15 @@ def _path_kernel(R, p, axes, origins, revolute, moves, site_body, site_local, st
         _add_segment(m, P, a, site_body[a], P, b, site_body[b], revolute, moves, axes, axo, lengths, grad)
     T = np.empty((2, 3))
     work = np.empty((10, 4))
+    Rw = np.empty((3, 3))
+    cw = np.empty(3)
     for h in range(wr.shape[0]):
         a, b, side, m = wr[h, 0], wr[h, 1], wr[h, 2], wr[h, 3]
         gb = wr_body[h]
-        Rw = R[gb] @ wr_rot[h]
-        cw = R[gb] @ wr_pos[h] + p[gb]
+        for r in range(3):  # wrap pose in world: R_body @ (R_local, p_local) + p_body
+            cw[r] = R[gb, r, 0] * wr_pos[h, 0] + R[gb, r, 1] * wr_pos[h, 1] + R[gb, r, 2] * wr_pos[h, 2] + p[gb, r]
+            for c in range(3):
+                Rw[r, c] = R[gb, r, 0] * wr_rot[h, 0, c] + R[gb, r, 1] * wr_rot[h, 1, c] + R[gb, r, 2] * wr_rot[h, 2, c]
         sp = P[side] if side >= 0 else P[a]
         wlen = wrap(P[a], P[b], cw, Rw, wr_radius[h], wr_cyl[h], sp, side >= 0, T[0], T[1], work)
         if wlen < 0:
@@ -385,6 +389,10 @@ class MusclePaths:
         self._wr_rot = np.array([quat_matrix(g.quat) for g in geoms], dtype=float).reshape(-1, 3, 3)
         self._wr_radius = np.array([g.radius for g in geoms], dtype=float)
         self._wr_cyl = np.array([g.kind == "cylinder" for g in geoms], dtype=np.bool_)
+
+    def bodies_used(self) -> set[int]:
+        """Indices of the bodies whose poses `compute` reads."""
+        return {int(b) for b in self._site_body} | {int(b) for b in self._wr_body}
 
     def compute(self, R_body: np.ndarray, p_body: np.ndarray, axes: np.ndarray, origins: np.ndarray, v: np.ndarray | None = None) -> PathState:
         """Lengths and moment arms from body poses (R (nb, 3, 3), p (nb, 3)) and coordinate axes.

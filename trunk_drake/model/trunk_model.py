@@ -86,7 +86,10 @@ class TrunkModel:
     def path_state_from_context(self, context, v=None) -> PathState:
         """Muscle path kinematics for a plant context (body poses read from the plant)."""
         plant = self.plant
-        poses = np.array([X.GetAsMatrix34() for X in plant.get_body_poses_output_port().Eval(context)])
+        all_poses = plant.get_body_poses_output_port().Eval(context)
+        poses = np.zeros((len(all_poses), 3, 4))
+        for i in self._pose_bodies:  # only bodies that carry sites, wraps or joint frames
+            poses[i] = all_poses[i].GetAsMatrix34()
         R, p = poses[:, :, :3], poses[:, :, 3]
         Rj = R[self._joint_body]
         axes = (Rj @ self._joint_axis[:, :, None])[:, :, 0]
@@ -126,6 +129,7 @@ class TrunkModel:
             axis.append(X_BM.rotation().matrix() @ np.asarray(axis_M))
             anchor.append(X_BM.translation())
         self._joint_body = np.array(body, dtype=int)
+        self._pose_bodies = sorted(set(body) | self._paths.bodies_used())
         self._joint_axis = np.array(axis, dtype=float).reshape(-1, 3)
         self._joint_anchor = np.array(anchor, dtype=float).reshape(-1, 3)
 

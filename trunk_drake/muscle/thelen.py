@@ -357,18 +357,26 @@ def minimum_fiber_length(params: MuscleParameters,
     return parallelogram_height(params) / math.sin(constants.maximum_pennation_angle)
 
 
+@numba.njit(cache=True)
+def _pennation(l, h, l_min, alpha_opt, max_pennation):
+    """Scalar constant-thickness pennation angle (rad), capped at the maximum."""
+    if alpha_opt <= _EPS:
+        return 0.0
+    sin_phi = h / l if l != 0.0 else math.inf
+    if l > l_min and sin_phi < math.sin(max_pennation):
+        return math.asin(min(1.0, max(0.0, sin_phi)))
+    return max_pennation
+
+
+_pennation_vectorized = numba.vectorize(["float64(float64, float64, float64, float64, float64)"], cache=True)(_pennation)
+
+
 def pennation_angle(fiber_length, params: MuscleParameters,
                     constants: ThelenConstants = THESIS_CONSTANTS):
     """Pennation angle (rad) of the constant-thickness model, capped at the maximum."""
-    l = np.asarray(fiber_length, dtype=float)
-    h = parallelogram_height(params)
-    amax = constants.maximum_pennation_angle
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sin_phi = h / l
-        phi = np.where((l > minimum_fiber_length(params, constants))
-                       & (sin_phi < math.sin(amax)),
-                       np.arcsin(np.clip(sin_phi, 0.0, 1.0)), amax)
-    return np.where(params.pennation_angle_at_optimal > _EPS, phi, 0.0)
+    return _pennation_vectorized(np.asarray(fiber_length, dtype=float), parallelogram_height(params),
+                                 minimum_fiber_length(params, constants), params.pennation_angle_at_optimal,
+                                 constants.maximum_pennation_angle)
 
 
 def _dcos_dl(l, h, cos_phi):
@@ -405,18 +413,31 @@ def _broadcast(x, n):
     return np.broadcast_to(np.asarray(x, dtype=float), (n,))
 
 
+@numba.njit(cache=True)
+def _rigid_fiber(l_mt, v_mt, l_slack, h, l_min, alpha_opt, max_pennation):
+    """Compiled per-muscle loop: fiber length, pennation, cos, fiber velocity, clamped flag."""
+    n = l_mt.shape[0]
+    l_f, phi, cos_phi, v_f = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    clamped = np.empty(n, dtype=np.bool_)
+    cos_max = math.cos(max_pennation)
+    for i in range(n):
+        l_at = l_mt[i] - l_slack[i]
+        l_f[i] = math.sqrt(h[i] * h[i] + l_at * l_at) if l_at >= l_min[i] * cos_max else l_min[i]
+        clamped[i] = not (l_f[i] > l_min[i])
+        phi[i] = _pennation(l_f[i], h[i], l_min[i], alpha_opt[i], max_pennation)
+        cos_phi[i] = math.cos(phi[i])
+        v_f[i] = 0.0 if clamped[i] else v_mt[i] * cos_phi[i]
+    return l_f, phi, cos_phi, v_f, clamped
+
+
 def _rigid_kinematics(l_mt, v_mt, params, constants):
     n = params.n_muscles
-    l_mt, v_mt = _broadcast(l_mt, n), _broadcast(v_mt, n)
+    l_mt = np.ascontiguousarray(_broadcast(l_mt, n))
+    v_mt = np.ascontiguousarray(_broadcast(v_mt, n))
     h = parallelogram_height(params)
-    l_min = minimum_fiber_length(params, constants)
-    l_at = l_mt - params.tendon_slack_length
-    l_f = np.where(l_at >= l_min * math.cos(constants.maximum_pennation_angle),
-                   np.sqrt(h * h + l_at * l_at), l_min)
-    clamped = ~(l_f > l_min)
-    phi = pennation_angle(l_f, params, constants)
-    cos_phi = np.cos(phi)
-    v_f = np.where(clamped, 0.0, v_mt * cos_phi)
+    l_f, phi, cos_phi, v_f, clamped = _rigid_fiber(
+        l_mt, v_mt, params.tendon_slack_length, h, minimum_fiber_length(params, constants),
+        params.pennation_angle_at_optimal, constants.maximum_pennation_angle)
     return l_mt, v_mt, h, l_f, phi, cos_phi, v_f, clamped
 
 

@@ -29,6 +29,7 @@ class IntervertebralBushings(LeafSystem):
         if np.any(self.k < 0) or np.any(self.c < 0) or self.cubic < 0:
             raise ValueError("bushing stiffness, damping and cubic coefficient must be >= 0")
         self._nq, self._nv = nq, nv
+        self._tau = np.zeros(nv)
         self.DeclareVectorInputPort("plant_state", nq + nv)
         self.DeclareVectorOutputPort("generalized_force", nv, self._calc)
 
@@ -38,6 +39,5 @@ class IntervertebralBushings(LeafSystem):
 
     def _calc(self, context, output):
         x = self.get_input_port(0).Eval(context)
-        tau = np.zeros(self._nv)
-        tau[self.idx] = self.moment(x[: self._nq], x[self._nq :])
-        output.SetFromVector(tau)
+        self._tau[self.idx] = self.moment(x[: self._nq], x[self._nq :])
+        output.SetFromVector(self._tau)

@@ -23,18 +23,20 @@ class PrescribedPelvisMotion(LeafSystem):
         self._dir = np.asarray(direction, dtype=float)
         self._scratch = plant.CreateDefaultContext()
         self._mass = plant.CalcTotalMass(self._scratch)
+        self._last_q, self._com_dir = None, None
         self._nq, nv = plant.num_positions(), plant.num_velocities()
         self.DeclareVectorInputPort("plant_state", self._nq + nv)
         self.DeclareVectorOutputPort("generalized_force", nv, self._calc_force)
         self.DeclareVectorOutputPort("platform", 3, self._calc_platform, prerequisites_of_calc={self.time_ticket()})
 
     def _calc_force(self, context, output):
-        plant, scratch = self._plant, self._scratch
-        plant.SetPositions(scratch, self.get_input_port(0).Eval(context)[: self._nq])
-        world = plant.world_frame()
-        J = plant.CalcJacobianCenterOfMassTranslationalVelocity(scratch, JacobianWrtVariable.kV, world, world)
-        acc = self._signal.evaluate(context.get_time())[2]
-        output.SetFromVector(-acc * self._mass * (J.T @ self._dir))
+        q = self.get_input_port(0).Eval(context)[: self._nq]
+        if self._last_q is None or not np.array_equal(q, self._last_q):  # memo over muscle-only changes
+            plant, scratch, world = self._plant, self._scratch, self._plant.world_frame()
+            plant.SetPositions(scratch, q)
+            J = plant.CalcJacobianCenterOfMassTranslationalVelocity(scratch, JacobianWrtVariable.kV, world, world)
+            self._last_q, self._com_dir = q.copy(), self._mass * (J.T @ self._dir)
+        output.SetFromVector(-self._signal.evaluate(context.get_time())[2] * self._com_dir)
 
     def _calc_platform(self, context, output):
         output.SetFromVector(np.asarray(self._signal.evaluate(context.get_time()), dtype=float))
