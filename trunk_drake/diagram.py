@@ -70,12 +70,23 @@ class TrunkDiagram:
     feedforward: np.ndarray  # the constant feed-forward excitation
 
 
+def rotation_coordinates(model) -> np.ndarray:
+    """Indices of the lumbar flexion-extension coordinates (any model: its hinge coordinates).
+
+    Bushings act on them and their sum is the lumbar rotation (S1-L1 link to the vertical)."""
+    names = model.coordinates
+    fe = [names.index(f"{lvl}_FE") for lvl in LEVELS if f"{lvl}_FE" in names]
+    return np.array(fe or [i for i, c in enumerate(model.coordinate_info) if c.kind == "hinge"], dtype=int)
+
+
 def plant_model_for(model, pelvis: str):
     """The model variant a pelvis mode needs (prescribed motion: pelvis welded)."""
     if pelvis not in PELVIS_MODES:
         raise ValueError(f"pelvis={pelvis!r}; expected one of {PELVIS_MODES}")
-    if model.dofs != "sagittal":
-        raise ValueError(f"dynamic simulation needs the 'sagittal' model, got dofs={model.dofs!r}")
+    if model.dofs == "spine3d":
+        raise ValueError("dynamic simulation needs the 'sagittal' model (or a user model, dofs='all'), got dofs='spine3d'")
+    if model.dofs == "all":
+        return model
     return model.variant(pelvis_free=(pelvis == "force"))
 
 
@@ -85,13 +96,13 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
     Loggers record every integrator step (``log_period=0``) or at a fixed period."""
     opts = options or TrunkOptions()
     pelvis_mode = opts.pelvis if perturbation is not None else ("none" if opts.pelvis == "prescribed" else opts.pelvis)
-    if opts.pelvis == "force":
+    if opts.pelvis == "force" and model.dofs == "sagittal":
         base = model.variant(pelvis_free=True, pelvis_mass=opts.pelvis_mass)
     else:
         base = plant_model_for(model, "prescribed")
     plant = base.plant
     nq, nv, n = plant.num_positions(), plant.num_velocities(), base.n_muscles
-    fe = np.array([base.coordinates.index(f"{lvl}_FE") for lvl in LEVELS])
+    fe = rotation_coordinates(base)
 
     builder = DiagramBuilder()
     builder.AddSystem(plant)

@@ -232,7 +232,7 @@ def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, se
     q, v = x[:, :nq], x[:, nq:]
     coords = list(td.model.coordinates)
     platform = logs["platform"] if "platform" in logs else np.zeros((len(t), 3))
-    if "pelvis_tx" not in coords:  # prescribed mode: the pelvis moves exactly with the platform
+    if td.model.dofs == "sagittal" and not td.model.pelvis_free:  # prescribed: the pelvis follows the platform
         coords = ["pelvis_tx", *coords]
         q = np.column_stack([platform[:, 0], q])
         v = np.column_stack([platform[:, 1], v])

@@ -8,6 +8,8 @@ are welded at zero.
 ``"spine3d"`` (static analysis): the pelvis is welded to the ground and every lumbar level
 has flexion-extension (``*_FE``), lateral bending (``*_LB``) and axial rotation (``*_AR``).
 
+``"all"``: every joint of the spec with its own name and sign (for user and test models).
+
 Sign conventions (MyoTorso keeps the OpenSim lumbar-model axes in every body: x anterior,
 y superior, z right):
 
@@ -54,7 +56,7 @@ _MYOTORSO_LEVEL_JOINTS = {
 }
 PELVIS_BODY = "sacrum"
 PELVIS_AXIS = np.array([1.0, 0.0, 0.0])  # anterior, in the sacrum frame
-DOFS = ("sagittal", "spine3d")
+DOFS = ("sagittal", "spine3d", "all")  # "all": every joint of the spec, as defined there
 
 
 @dataclass(frozen=True)
@@ -74,6 +76,8 @@ def coordinates_for(spec: ModelSpec, dofs: str, pelvis_free: bool = True) -> lis
     """The free coordinates of a configuration, in kinematic order (root to tip)."""
     if dofs not in DOFS:
         raise ValueError(f"unknown configuration dofs={dofs!r}; expected one of {DOFS}")
+    if dofs == "all":
+        return [Coordinate(j.name, j.body, j.kind, np.asarray(j.axis, float), j.name, 1.0, j.range) for j in spec.joints]
     coords: list[Coordinate] = []
     if dofs == "sagittal" and pelvis_free:
         coords.append(Coordinate("pelvis_tx", PELVIS_BODY, "slide", PELVIS_AXIS.copy(), None, 1.0, (-1.0, 1.0)))

@@ -1,0 +1,245 @@
+"""strength-batch: isometric strength over a grid of cases, in parallel, resumable.
+
+A grid file (TOML) has ``[defaults]`` (parameters of every case), ``[grid]`` (lists whose
+Cartesian product makes the cases) and optional ``[[cases]]`` (explicit extra cases, merged
+onto the defaults). Case parameters (CASE_DEFAULTS): direction, strength_scale,
+min_activation, p, include_passive, level (thoracic landmarks carrying the sagittal load),
+shoulder ("model" | "acromion"), lumbar_flexion_deg (total lumbar flexion, spread equally
+over the five levels), sweep, step, dofs.
+
+Runs on local processes (concurrent.futures, one model built per worker by the initializer)
+or on an existing Dask distributed cluster (``cluster="tcp://host:8786"``; each worker
+builds its model on first use and caches it). Drake objects never travel: workers receive
+parameter dicts and return plain rows. Each finished case is appended to
+``<out>/results.jsonl`` at once; a rerun skips cases already there (``retry_failed`` reruns
+the failed ones); a failing case records its error and the batch goes on.
+``<out>/results.csv`` is rewritten from all rows at the end.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import itertools
+import json
+import multiprocessing
+import os
+import socket
+import threading
+import time
+import tomllib
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+import numpy as np
+
+CASE_DEFAULTS = {
+    "direction": "extension", "strength_scale": 1.0, "min_activation": 0.01, "p": 2.0, "include_passive": True,
+    "level": ["T6", "T7"], "shoulder": "model", "lumbar_flexion_deg": 0.0, "sweep": False, "step": 10.0, "dofs": "spine3d",
+}
+RESULTS = "results.jsonl"
+_MODELS: dict = {}  # (dofs, thread id) -> TrunkModel, per worker process
+
+
+# ---------------------------------------------------------------------------- cases
+
+def case_id(params: dict) -> str:
+    """Stable identifier of a case: hash of its parameters."""
+    return hashlib.sha1(json.dumps(params, sort_keys=True).encode()).hexdigest()[:12]
+
+
+def _case(params: dict, where: str) -> dict:
+    unknown = set(params) - set(CASE_DEFAULTS)
+    if unknown:
+        raise ValueError(f"{where}: unknown case parameter(s) {sorted(unknown)}; known: {sorted(CASE_DEFAULTS)}")
+    case = {**CASE_DEFAULTS, **params}
+    return {"case_id": case_id(case), **case}
+
+
+def load_grid(path) -> list[dict]:
+    """The cases of a grid file, in a stable order, each with its ``case_id``."""
+    path = Path(path)
+    with path.open("rb") as f:
+        spec = tomllib.load(f)
+    unknown = set(spec) - {"defaults", "grid", "cases"}
+    if unknown:
+        raise ValueError(f"{path}: unknown section(s) {sorted(unknown)}; expected [defaults], [grid], [[cases]]")
+    defaults = spec.get("defaults", {})
+    grid = spec.get("grid", {})
+    for key, values in grid.items():
+        if not isinstance(values, list) or not values:
+            raise ValueError(f"{path}: [grid] {key} must be a non-empty list, got {values!r}")
+    cases = [_case({**defaults, **dict(zip(grid, combo))}, str(path)) for combo in itertools.product(*grid.values())] if grid else []
+    cases += [_case({**defaults, **extra}, f"{path} [[cases]] #{i + 1}") for i, extra in enumerate(spec.get("cases", []))]
+    if not cases:
+        raise ValueError(f"{path} defines no cases: add a [grid] table or [[cases]]")
+    ids = [c["case_id"] for c in cases]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"{path}: some cases are identical; each case must differ in at least one parameter")
+    return cases
+
+
+# ------------------------------------------------------------------------ worker side
+
+def _model(dofs: str):
+    from trunk_drake.model.trunk_model import load_model
+
+    key = (dofs, threading.get_ident())  # Drake contexts are not shared between threads
+    if key not in _MODELS:
+        _MODELS[key] = load_model(dofs=dofs)
+    return _MODELS[key]
+
+
+def _init_worker(dofs_list) -> None:
+    for dofs in dofs_list:
+        _model(dofs)
+
+
+def run_case(case: dict) -> dict:
+    """Compute one case; never raises: a failure becomes an error row."""
+    from trunk_drake.model.plant import LEVELS
+    from trunk_drake.optim.strength import isometric_strength
+
+    start = time.perf_counter()
+    row = {"case_id": case["case_id"], "params": {k: v for k, v in case.items() if k != "case_id"},
+           "worker": f"{socket.gethostname()}:{os.getpid()}"}
+    try:
+        model = _model(case["dofs"])
+        q = np.zeros(len(model.coordinates))
+        for level in LEVELS:
+            q[model.coordinates.index(f"{level}_FE")] = np.radians(case["lumbar_flexion_deg"]) / len(LEVELS)
+        result = isometric_strength(
+            model, (case["direction"],), q=q, level=tuple(case["level"]), shoulder=case["shoulder"], sweep=case["sweep"],
+            step=case["step"], p=case["p"], min_activation=case["min_activation"],
+            strength_scale=case["strength_scale"], include_passive=case["include_passive"],
+        )[case["direction"]]
+        row.update(status="ok", error=None, max_force_N=result.max_force, limiting_coordinate=result.limiting_coordinate,
+                   muscles_at_upper_bound=len(result.muscles_at_upper_bound), sweep_last_feasible_N=result.sweep_force,
+                   sweep_solves=result.sweep_solves, sweep_parity=result.parity)
+    except Exception as err:  # noqa: BLE001 - any failure is recorded and the batch goes on
+        row.update(status="error", error=f"{type(err).__name__}: {err}")
+    row["time_s"] = time.perf_counter() - start
+    return row
+
+
+# ------------------------------------------------------------------------ bookkeeping
+
+def read_rows(out_dir) -> list[dict]:
+    """Rows of ``results.jsonl``; a torn last line (interrupted write) is dropped from the file."""
+    path = Path(out_dir) / RESULTS
+    if not path.exists():
+        return []
+    rows, good = [], []
+    for line in path.read_text().splitlines():
+        try:
+            rows.append(json.loads(line))
+            good.append(line)
+        except json.JSONDecodeError:
+            continue
+    path.write_text("".join(line + "\n" for line in good))
+    return rows
+
+
+def write_csv(rows: list[dict], out_dir) -> Path:
+    """Flatten rows (params become columns) into ``results.csv``."""
+    flat = [{**{k: v for k, v in r.items() if k != "params"}, **{f"param_{k}": json.dumps(v) if isinstance(v, list) else v
+                                                                   for k, v in r.get("params", {}).items()}} for r in rows]
+    fields = list(dict.fromkeys(k for r in flat for k in r))
+    path = Path(out_dir) / "results.csv"
+    with path.open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=fields)
+        writer.writeheader()
+        writer.writerows(flat)
+    return path
+
+
+def _json_default(obj):
+    if isinstance(obj, (np.generic,)):
+        return obj.item()
+    raise TypeError(f"not JSON serialisable: {type(obj)}")
+
+
+# ---------------------------------------------------------------------------- runner
+
+def run_batch(cases: list[dict], out_dir, cluster: str | None = None, workers: int | None = None,
+              progress: bool = True, retry_failed: bool = False) -> dict:
+    """Run the cases not yet in ``<out_dir>/results.jsonl``; returns counts and the output paths."""
+    from tqdm import tqdm
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = read_rows(out)
+    if retry_failed:
+        rows = [r for r in rows if r.get("status") == "ok"]
+        (out / RESULTS).write_text("".join(json.dumps(r, default=_json_default) + "\n" for r in rows))
+    done = {r["case_id"] for r in rows}
+    pending = [c for c in cases if c["case_id"] not in done]
+    counts = {"cases": len(cases), "already_done": len(cases) - len(pending), "ran": 0, "ok": 0, "failed": 0}
+    with (out / RESULTS).open("a") as sink, tqdm(total=len(pending), desc="strength-batch", disable=not progress) as bar:
+        def record(row):
+            sink.write(json.dumps(row, default=_json_default) + "\n")
+            sink.flush()
+            rows.append(row)
+            counts["ran"] += 1
+            counts["ok" if row["status"] == "ok" else "failed"] += 1
+            bar.update(1)
+
+        if pending:
+            (_run_dask if cluster else _run_local)(pending, record, cluster if cluster else workers)
+    counts.update(results=str(out / RESULTS), csv=str(write_csv(rows, out)))
+    return counts
+
+
+def _run_local(pending, record, workers) -> None:
+    workers = workers or min(len(pending), os.cpu_count() or 1)
+    dofs = sorted({c["dofs"] for c in pending})
+    executor = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=_init_worker, initargs=(dofs,))
+    try:
+        futures = {executor.submit(run_case, c): c for c in pending}
+        for future in as_completed(futures):
+            try:
+                record(future.result())
+            except Exception as err:  # noqa: BLE001 - a crashed worker process
+                case = futures[future]
+                record({"case_id": case["case_id"], "params": {k: v for k, v in case.items() if k != "case_id"},
+                        "status": "error", "error": f"worker crashed: {type(err).__name__}: {err}"})
+    finally:
+        executor.shutdown(wait=False, cancel_futures=True)
+
+
+def _run_dask(pending, record, address) -> None:
+    from dask.distributed import Client, as_completed as dask_completed
+
+    with Client(address) as client:
+        futures = client.map(run_case, pending, pure=False)
+        for future in dask_completed(futures):
+            record(future.result())
+
+
+# ------------------------------------------------------------------------------- CLI
+
+def add_batch_command(sub) -> None:
+    """`trunk-drake strength-batch GRID.toml --out DIR [--cluster ADDRESS] [--workers N]`."""
+    p = sub.add_parser("strength-batch", help="isometric strength over a grid of cases (parallel, resumable)")
+    p.add_argument("grid", help="grid file (TOML), e.g. models/strength_grid_example.toml")
+    p.add_argument("--out", required=True, help="output folder (results.jsonl, results.csv); rerun to resume")
+    p.add_argument("--cluster", default=None, metavar="ADDRESS", help="Dask scheduler address, e.g. tcp://host:8786")
+    p.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
+    p.add_argument("--retry-failed", action="store_true", help="rerun cases recorded as failed")
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    p.set_defaults(func=_cmd_batch)
+
+
+def _cmd_batch(args) -> int:
+    from trunk_drake.cli import print_json
+
+    cases = load_grid(args.grid)
+    try:
+        counts = run_batch(cases, args.out, cluster=args.cluster, workers=args.workers,
+                           progress=not args.no_progress, retry_failed=args.retry_failed)
+    except KeyboardInterrupt:
+        print(f"interrupted; finished cases are in {Path(args.out) / RESULTS}; rerun the same command to resume")
+        return 130
+    print_json(counts)
+    return 0
