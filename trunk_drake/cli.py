@@ -13,6 +13,7 @@ import sys
 
 COMMAND_MODULES = (
     "trunk_drake.model.info",
+    "trunk_drake.simulation",
     "trunk_drake.optim.strength",
 )
 

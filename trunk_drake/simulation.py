@@ -174,10 +174,7 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
     integ = simulator.get_mutable_integrator()
     if integrator not in FIXED_STEP_INTEGRATORS:
         integ.set_target_accuracy(accuracy)
-    # start at rest, activations equal to the feed-forward excitation (no stretch at q = 0)
-    x0 = td.muscles.default_state
-    x0[: td.muscles.n] = np.clip(td.feedforward, opts.constants.minimum_activation, 1.0)
-    td.muscles.GetMyMutableContextFromRoot(simulator.get_mutable_context()).SetContinuousState(x0)
+    _set_initial_muscle_state(td, simulator.get_mutable_context())
     simulator.set_monitor(_monitor(td))
 
     wall = _time.perf_counter()
@@ -188,6 +185,20 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
         raise SimulationError(str(err)) from None
     wall = _time.perf_counter() - wall
     return _collect(td, simulator, wall, integrator, accuracy, signal, seed, bandwidth, duration, log_rate)
+
+
+def _set_initial_muscle_state(td: TrunkDiagram, root_context) -> None:
+    """Start at rest: activations equal to the feed-forward excitation (no stretch at q = 0),
+    compliant fibers in static force equilibrium with their tendons."""
+    from trunk_drake.muscle import thelen
+
+    muscles, n = td.muscles, td.muscles.n
+    x0 = muscles.default_state
+    x0[:n] = np.clip(td.feedforward, td.options.constants.minimum_activation, 1.0)
+    if muscles.tendon == "compliant":
+        path = td.paths.GetOutputPort("path_state").Eval(td.paths.GetMyContextFromRoot(root_context))
+        x0[n:] = thelen.equilibrium_fiber_length(x0[:n], path.lengths, muscles.params, muscles.constants).fiber_length
+    muscles.GetMyMutableContextFromRoot(root_context).SetContinuousState(x0)
 
 
 def _perturbation(perturbation, bandwidth, seed):
@@ -256,3 +267,79 @@ def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, se
         platform=platform, stats=stats, wall_time_s=wall, options=opts,
         metadata=run_metadata(td.model, seed=seed, bandwidth=bandwidth, perturbation=getattr(signal, "to_dict", lambda: None)()),
     )
+
+
+def load_reflex_gains(path) -> dict[str, dict[str, float]]:
+    """Per-group reflex gains from a TOML or JSON file with tables/objects ``kp`` and ``kv``.
+
+    A file may hold several named sets (like models/reflex_gains_thesis.toml); then use
+    ``FILE#name`` to pick one, e.g. ``models/reflex_gains_thesis.toml#car_passenger``.
+    """
+    import json
+    import tomllib
+
+    path, _, name = str(path).partition("#")
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"reflex gains file {p} does not exist")
+    data = tomllib.loads(p.read_text()) if p.suffix == ".toml" else json.loads(p.read_text())
+    if name:
+        if name not in data:
+            raise ValueError(f"{p} has no gain set {name!r}; sets: {sorted(k for k in data if isinstance(data[k], dict))}")
+        data = data[name]
+    missing = [k for k in ("kp", "kv") if k not in data]
+    if missing:
+        raise ValueError(f"{p}{'#' + name if name else ''} lacks the {missing} table(s); expected [kp] and [kv] per muscle group")
+    return {"kp": dict(data["kp"]), "kv": dict(data["kv"])}
+
+
+DEFAULT_GAINS = "reflex_gains_thesis.toml#car_passenger"
+
+
+def add_commands(sub) -> None:
+    """`trunk-drake simulate ...`."""
+    p = sub.add_parser("simulate", help="forward-simulate a pelvis-perturbation trial",
+                       description="Simulate the seated trunk (210 muscles, stretch reflexes, bushings) under a "
+                                   "multisine pelvis perturbation; writes .sto, CSV, JSON and a PNG plot.")
+    p.add_argument("--duration", type=float, default=20.0, help="simulated seconds (default 20)")
+    p.add_argument("--bandwidth", type=float, default=1.0, help="highest perturbation frequency, Hz (1, 3 or 10)")
+    p.add_argument("--seed", type=int, default=0, help="multisine phase seed")
+    p.add_argument("--reflex-gains", default=None,
+                   help=f"TOML/JSON with [kp] and [kv] per group (FILE#set picks a set); default: models/{DEFAULT_GAINS}")
+    p.add_argument("--no-reflex", action="store_true", help="switch the stretch reflexes off")
+    p.add_argument("--tendon", choices=["rigid", "compliant"], default="rigid")
+    p.add_argument("--coactivation", type=float, default=0.02,
+                   help="minimum activation of the feed-forward co-activation (default 0.02, as the thesis)")
+    p.add_argument("--stiffness", type=float, default=125.0, help="bushing stiffness, Nm/rad (thesis final: 125)")
+    p.add_argument("--damping", type=float, default=7.5, help="bushing damping, Nms/rad")
+    p.add_argument("--pelvis", choices=["prescribed", "force"], default="prescribed",
+                   help="exact prescribed pelvis motion, or the thesis' 10,000 kg force-driven pelvis")
+    p.add_argument("--accuracy", type=float, default=DEFAULT_ACCURACY, help="integrator target accuracy")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    p.add_argument("--progress", action="store_true", help="show a progress bar")
+    p.set_defaults(func=_cmd_simulate)
+
+
+def _cmd_simulate(args) -> int:
+    import json
+
+    from trunk_drake.data import models_dir
+    from trunk_drake.model.trunk_model import load_model
+    from trunk_drake.optim.static import coactivation
+
+    model = load_model("sagittal")
+    gains = {"kp": 0.0, "kv": 0.0} if args.no_reflex else load_reflex_gains(args.reflex_gains or models_dir() / DEFAULT_GAINS)
+    result = simulate(
+        model, duration=args.duration, bandwidth=args.bandwidth, seed=args.seed, tendon=args.tendon,
+        feedforward=coactivation(model, args.coactivation), stiffness=args.stiffness, damping=args.damping,
+        pelvis=args.pelvis, accuracy=args.accuracy, progress=args.progress, **gains,
+    )
+    files = result.write(args.out)
+    summary = {**result.summary(), "files": {k: str(v) for k, v in files.items()}}
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(f"simulated {summary['sim_time_s']:.1f} s in {summary['wall_time_s']:.2f} s "
+              f"(real-time factor {summary['real_time_factor']:.1f}, {summary['steps']} steps); results in {args.out}")
+    return 0

@@ -36,6 +36,8 @@ class MusclePathSystem(LeafSystem):
         x = self.get_input_port(0).Eval(context)
         if self._last_x is None or not np.array_equal(x, self._last_x):
             # memo: implicit integrators perturb muscle states with the plant state unchanged
+            if not np.all(np.isfinite(x)):  # Drake would abort on non-finite positions
+                raise RuntimeError(f"non-finite plant state at t={context.get_time():.6g} s: {x}")
             self._model.plant.SetPositions(self._scratch, x[: self._nq])
             self._last = self._model.path_state_from_context(self._scratch, x[self._nq :])
             self._last_x = x.copy()

@@ -32,6 +32,8 @@ class PrescribedPelvisMotion(LeafSystem):
     def _calc_force(self, context, output):
         q = self.get_input_port(0).Eval(context)[: self._nq]
         if self._last_q is None or not np.array_equal(q, self._last_q):  # memo over muscle-only changes
+            if not np.all(np.isfinite(q)):  # Drake would abort on non-finite positions
+                raise RuntimeError(f"non-finite pelvis-frame positions at t={context.get_time():.6g} s: {q}")
             plant, scratch, world = self._plant, self._scratch, self._plant.world_frame()
             plant.SetPositions(scratch, q)
             J = plant.CalcJacobianCenterOfMassTranslationalVelocity(scratch, JacobianWrtVariable.kV, world, world)
