@@ -24,11 +24,13 @@ import itertools
 import json
 import multiprocessing
 import os
+import signal
 import socket
 import threading
 import time
 import tomllib
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 import numpy as np
@@ -38,7 +40,8 @@ CASE_DEFAULTS = {
     "level": ["T6", "T7"], "shoulder": "model", "lumbar_flexion_deg": 0.0, "sweep": False, "step": 10.0, "dofs": "spine3d",
 }
 RESULTS = "results.jsonl"
-_MODELS: dict = {}  # (dofs, thread id) -> TrunkModel, per worker process
+_MODELS: dict = {}  # dofs -> TrunkModel, per worker process
+_LOCK = threading.Lock()
 
 
 # ---------------------------------------------------------------------------- cases
@@ -84,19 +87,28 @@ def load_grid(path) -> list[dict]:
 def _model(dofs: str):
     from trunk_drake.model.trunk_model import load_model
 
-    key = (dofs, threading.get_ident())  # Drake contexts are not shared between threads
-    if key not in _MODELS:
-        _MODELS[key] = load_model(dofs=dofs)
-    return _MODELS[key]
+    if dofs not in _MODELS:  # built once per worker process; run_case's lock keeps threads apart
+        _MODELS[dofs] = load_model(dofs=dofs)
+    return _MODELS[dofs]
 
 
 def _init_worker(dofs_list) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's business: it stops the batch
     for dofs in dofs_list:
         _model(dofs)
 
 
 def run_case(case: dict) -> dict:
-    """Compute one case; never raises: a failure becomes an error row."""
+    """Compute one case; never raises: a failure becomes an error row.
+
+    Threads of one process (e.g. a Dask LocalCluster with processes=False) run cases one at
+    a time: pybind11, under pydrake, is not thread-safe everywhere.
+    """
+    with _LOCK:
+        return _run_case(case)
+
+
+def _run_case(case: dict) -> dict:
     from trunk_drake.model.plant import LEVELS
     from trunk_drake.optim.strength import isometric_strength
 
@@ -113,7 +125,8 @@ def run_case(case: dict) -> dict:
             step=case["step"], p=case["p"], min_activation=case["min_activation"],
             strength_scale=case["strength_scale"], include_passive=case["include_passive"],
         )[case["direction"]]
-        row.update(status="ok", error=None, max_force_N=result.max_force, limiting_coordinate=result.limiting_coordinate,
+        row.update(status="ok", error=None, max_force_N=result.max_force, min_feasible_force_N=result.min_force,
+                   limiting_coordinate=result.limiting_coordinate,
                    muscles_at_upper_bound=len(result.muscles_at_upper_bound), sweep_last_feasible_N=result.sweep_force,
                    sweep_solves=result.sweep_solves, sweep_parity=result.parity)
     except Exception as err:  # noqa: BLE001 - any failure is recorded and the batch goes on
@@ -196,14 +209,11 @@ def _run_local(pending, record, workers) -> None:
     executor = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                    initializer=_init_worker, initargs=(dofs,))
     try:
-        futures = {executor.submit(run_case, c): c for c in pending}
-        for future in as_completed(futures):
-            try:
-                record(future.result())
-            except Exception as err:  # noqa: BLE001 - a crashed worker process
-                case = futures[future]
-                record({"case_id": case["case_id"], "params": {k: v for k, v in case.items() if k != "case_id"},
-                        "status": "error", "error": f"worker crashed: {type(err).__name__}: {err}"})
+        for future in as_completed([executor.submit(run_case, c) for c in pending]):
+            record(future.result())  # run_case never raises
+    except BrokenProcessPool as err:
+        raise RuntimeError("a worker process died (out of memory or a crash in native code); finished cases are saved: "
+                           "rerun to resume, with --workers 1 to find the case if it recurs") from err
     finally:
         executor.shutdown(wait=False, cancel_futures=True)
 
@@ -213,8 +223,14 @@ def _run_dask(pending, record, address) -> None:
 
     with Client(address) as client:
         futures = client.map(run_case, pending, pure=False)
+        cases = dict(zip((f.key for f in futures), pending))
         for future in dask_completed(futures):
-            record(future.result())
+            try:
+                record(future.result())
+            except Exception as err:  # noqa: BLE001 - the worker running this case died
+                case = cases[future.key]
+                record({"case_id": case["case_id"], "params": {k: v for k, v in case.items() if k != "case_id"},
+                        "status": "error", "error": f"worker lost: {type(err).__name__}: {err}"})
 
 
 # ------------------------------------------------------------------------------- CLI
@@ -241,5 +257,8 @@ def _cmd_batch(args) -> int:
     except KeyboardInterrupt:
         print(f"interrupted; finished cases are in {Path(args.out) / RESULTS}; rerun the same command to resume")
         return 130
+    except RuntimeError as err:
+        print(f"trunk-drake strength-batch: error: {err}")
+        return 1
     print_json(counts)
     return 0

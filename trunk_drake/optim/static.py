@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import fnmatch
 import time
+import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -33,6 +34,7 @@ from trunk_drake.systems.muscles import muscle_parameters
 
 UPPER_BOUND_TOL = 1e-3  # an activation within this of max_activation counts as "at the upper bound"
 COACTIVATION_LEVELS = (0.010, 0.011, 0.020, 0.070)  # seed 3.2.3 and 4.4.2
+COACTIVATION_RESERVE = 0.01  # Nm: optimal force of the last-resort reserve actuators of `coactivation`
 
 
 class StaticInfeasibleError(ValueError):
@@ -130,16 +132,6 @@ class StaticResult:
         """Reserve generalized forces above 1e-6 (Nm or N), by coordinate."""
         return {c: float(f) for c, f in zip(self.coordinates, self.reserve_forces) if abs(f) > 1e-6}
 
-    def summary(self) -> dict:
-        """Plain-data digest (JSON-ready)."""
-        return {
-            "status": self.status, "solver": self.solver, "p": self.p,
-            "min_activation": self.min_activation, "cost": self.cost,
-            "max_abs_residual": float(np.max(np.abs(self.residuals), initial=0.0)),
-            "muscles_at_upper_bound": self.at_upper_bound, "reserves_used": self.reserves_used,
-            "solve_time_s": self.solve_time,
-        }
-
 
 # ----------------------------------------------------------------------------- the solver
 
@@ -152,12 +144,14 @@ def _check_bounds(p: float, min_activation: float, max_activation: float) -> Non
 
 
 def _power_cost(p: float):
-    """sum(z^p) for z >= 0 with an analytic gradient (Drake passes AutoDiffXd arrays to IPOPT)."""
+    """sum(|z|^p) with an analytic gradient (Drake passes AutoDiffXd arrays to IPOPT, which may
+    step slightly outside the bounds, so |z| keeps non-integer powers real)."""
     def cost(z):
         if z.dtype == object:
             v = ExtractValue(z).ravel()
-            return AutoDiffXd(float(np.sum(v**p)), (p * v ** (p - 1.0)) @ ExtractGradient(z))
-        return np.sum(z**p)
+            grad = p * np.abs(v) ** (p - 1.0) * np.sign(v)
+            return AutoDiffXd(float(np.sum(np.abs(v) ** p)), grad @ ExtractGradient(z))
+        return np.sum(np.abs(z) ** p)
     return cost
 
 
@@ -192,10 +186,9 @@ class ActivationProgram:
             prog.AddCost(_power_cost(self.p), self.x)
             self.solver = IpoptSolver()
         self.options = SolverOptions()
-        sid = self.solver.solver_id()
-        if self.solver.solver_id() == IpoptSolver.id():
+        if isinstance(self.solver, IpoptSolver):
             for key, value in (("tol", 1e-10), ("constr_viol_tol", 1e-10), ("print_level", 0)):
-                self.options.SetOption(sid, key, value)
+                self.options.SetOption(IpoptSolver.id(), key, value)
         self.prog = prog
 
     def solve(self, balance: MomentBalance, min_activation: float, max_activation: float):
@@ -212,7 +205,7 @@ class ActivationProgram:
         lower = np.concatenate([np.full(self.n, min_activation), np.zeros(nr)])
         upper = np.concatenate([np.full(self.n, max_activation), np.full(nr, np.inf)])
         self._bounds.evaluator().set_bounds(lower, upper)
-        if self.solver.solver_id() == IpoptSolver.id():
+        if isinstance(self.solver, IpoptSolver):
             self.prog.SetInitialGuessForAllVariables(np.concatenate([np.full(self.n, 0.5 * (min_activation + max_activation)), np.zeros(nr)]))
         start = time.perf_counter()
         result = self.solver.Solve(self.prog, None, self.options)
@@ -413,18 +406,35 @@ def static_optimization(model, q, v=None, vdot=None, external_loads=(), **option
     return StaticOptimizer(model, **options).solve(q, v, vdot, external_loads)
 
 
-def coactivation(model, min_activation: float = 0.020, q=None, **options) -> np.ndarray:
+def coactivation(model, min_activation: float = 0.020, q=None, reserves: float = COACTIVATION_RESERVE,
+                 return_result: bool = False, **options):
     """Feed-forward excitation (n_muscles,) that holds the upright posture under gravity.
 
     Static optimisation of the lumbar flexion-extension coordinates (seed 3.2.3; every other
     coordinate, e.g. pelvis_tx, is locked) with activations >= `min_activation`; at steady
     state excitation equals activation, so the result feeds ``TrunkOptions(feedforward=...)``.
     The thesis used 0.010, 0.011, 0.020 and 0.070 (COACTIVATION_LEVELS) and kept 0.020.
+
+    MyoTorso's muscles cannot always balance the small, level-alternating gravity moments
+    exactly once every muscle is held above `min_activation`. Then reserve actuators of
+    `reserves` Nm optimal force (a last resort: 0.01 Nm costs as much as a fully active
+    muscle) take the remainder, and a warning names it with the settling of the bushings that
+    would carry it. With ``return_result`` the StaticResult comes too: ``(excitation, result)``.
     """
     fe = [f"{lvl}_FE" for lvl in LEVELS]
     locked = [c for c in model.coordinates if c not in fe]
     q = np.zeros(len(model.coordinates)) if q is None else q
-    return StaticOptimizer(model, min_activation=min_activation, locked=locked, **options).solve(q).activations
+    try:
+        result = StaticOptimizer(model, min_activation=min_activation, locked=locked, **options).solve(q)
+    except StaticInfeasibleError:
+        optimizer = StaticOptimizer(model, min_activation=min_activation, locked=locked, reserves=reserves, **options)
+        result = optimizer.solve(q)
+        k = dict(zip(fe, optimizer.k))
+        detail = ", ".join(f"{c} {f:+.3g} Nm (~{np.degrees(abs(f) / k[c]) if k[c] > 0 else np.inf:.2g} deg on the bushing)"
+                           for c, f in result.reserves_used.items() if abs(f) > 1e-3)
+        warnings.warn(f"co-activation at min_activation={min_activation}: the muscles leave {detail} unbalanced; "
+                      "the posture settles until the bushings take it", stacklevel=2)
+    return (result.activations, result) if return_result else result.activations
 
 
 def with_required(balance: MomentBalance, extra) -> MomentBalance:

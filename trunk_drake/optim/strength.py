@@ -25,7 +25,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from pydrake.solvers import ClarabelSolver, MathematicalProgram
+from pydrake.solvers import Binding, ClarabelSolver, EvaluatorBase, MathematicalProgram
 
 from trunk_drake.data import load_toml
 from trunk_drake.optim.static import (
@@ -106,6 +106,7 @@ class StrengthResult:
 
     direction: str
     max_force: float                      # N, solved directly (LP)
+    min_force: float                      # N, smallest feasible load: > 0 if the unloaded posture is infeasible
     limiting_coordinate: str
     sensitivity: dict[str, float]         # dF_max / d(extra generalized force), N per Nm (or N/N)
     muscles_at_upper_bound: list[str]     # static optimisation just below the maximum
@@ -128,7 +129,8 @@ class StrengthResult:
 
     def summary(self) -> dict:
         out = {
-            "direction": self.direction, "max_force_N": self.max_force, "load": self.load.description,
+            "direction": self.direction, "max_force_N": self.max_force, "min_feasible_force_N": self.min_force,
+            "load": self.load.description,
             "limiting_coordinate": self.limiting_coordinate,
             "sensitivity_N_per_Nm": self.sensitivity,
             "muscles_at_upper_bound": self.muscles_at_upper_bound,
@@ -140,6 +142,49 @@ class StrengthResult:
         if self.variants:
             out["variants"] = self.variants
         return out
+
+
+def _load_lp(balance: MomentBalance, per_newton, min_activation: float, max_activation: float, maximise: bool):
+    per_newton = np.asarray(per_newton, float)
+    n = balance.moment_arms.shape[0]
+    prog = MathematicalProgram()
+    a = prog.NewContinuousVariables(n, "a")
+    force = prog.NewContinuousVariables(1, "F")
+    prog.AddBoundingBoxConstraint(min_activation, max_activation, a)
+    prog.AddBoundingBoxConstraint(0.0, FORCE_CAP, force)
+    constraint = prog.AddLinearEqualityConstraint(np.hstack([balance.activation_matrix, per_newton[:, None]]), balance.target,
+                                                  np.concatenate([a, force]))
+    prog.AddLinearCost(-np.ones(1) if maximise else np.ones(1), force)
+    return ClarabelSolver().Solve(prog), force, constraint
+
+
+def max_load(balance: MomentBalance, per_newton, min_activation: float = 0.01, max_activation: float = 1.0,
+             where: str = "") -> tuple[float, np.ndarray]:
+    """Largest load F with activations in bounds such that R^T (a active + passive) + per_newton F = required.
+
+    A linear program over (activations, F). Returns F (N) and the sensitivity of F to extra
+    generalized force made available at each coordinate (N per Nm). Raises
+    StaticInfeasibleError if no load F >= 0 is feasible, ValueError if the load meets no
+    resistance.
+    """
+    result, force, constraint = _load_lp(balance, per_newton, min_activation, max_activation, maximise=True)
+    if not result.is_success():
+        raise infeasible_error(balance, min_activation, max_activation, str(result.get_solution_result()),
+                               f" for every load{where}; without load")
+    f_max = float(result.GetSolution(force)[0])
+    if f_max >= FORCE_CAP * (1 - 1e-6):
+        raise ValueError(f"the load meets no muscular resistance{where} (maximum hit {FORCE_CAP:g} N): its generalized "
+                         f"force per N {dict(zip(balance.coordinates, np.round(per_newton, 4)))} is zero or acts only on locked coordinates")
+    # Drake's dual is d(cost)/d(rhs) with cost = -F; extra generalized force h enters as rhs - h. The binding
+    # is up-cast explicitly: pybind11's implicit conversion is not thread-safe (Dask thread workers).
+    base = Binding[EvaluatorBase](constraint.evaluator(), constraint.variables())
+    return f_max, np.asarray(result.GetDualSolution(base), float)
+
+
+def min_load(balance: MomentBalance, per_newton, min_activation: float = 0.01, max_activation: float = 1.0) -> float:
+    """Smallest feasible load F >= 0 (N): above 0 when the unloaded posture cannot be held (call after max_load)."""
+    result, force, _ = _load_lp(balance, per_newton, min_activation, max_activation, maximise=False)
+    return float(result.GetSolution(force)[0]) if result.is_success() else float("nan")
 
 
 class StrengthProblem:
@@ -163,27 +208,13 @@ class StrengthProblem:
 
     def maximum(self) -> tuple[float, np.ndarray]:
         """(largest feasible load in N, dF_max/d(extra generalized force) per coordinate)."""
-        opt, bal = self.optimizer, self.balance
-        n = bal.moment_arms.shape[0]
-        prog = MathematicalProgram()
-        a = prog.NewContinuousVariables(n, "a")
-        force = prog.NewContinuousVariables(1, "F")
-        prog.AddBoundingBoxConstraint(opt.min_activation, opt.max_activation, a)
-        prog.AddBoundingBoxConstraint(0.0, FORCE_CAP, force)
-        balance = prog.AddLinearEqualityConstraint(np.hstack([bal.activation_matrix, self.per_newton[:, None]]), bal.target,
-                                                   np.concatenate([a, force]))
-        prog.AddLinearCost(-np.ones(1), force)
-        result = ClarabelSolver().Solve(prog)
-        if not result.is_success():
-            raise infeasible_error(bal, opt.min_activation, opt.max_activation, str(result.get_solution_result()),
-                                   f" without external load ({self.case.direction} test)")
-        f_max = float(result.GetSolution(force)[0])
-        if f_max >= FORCE_CAP * (1 - 1e-6):
-            raise ValueError(f"the {self.case.direction} load is not resisted by the muscles (maximum hit {FORCE_CAP:g} N): "
-                             f"its generalized force {dict(zip(self.coordinates, np.round(self.per_newton, 4)))} per N "
-                             "acts only on locked coordinates")
-        # Drake's dual is d(cost)/d(rhs) with cost = -F; extra help h enters as rhs - h.
-        return f_max, np.asarray(result.GetDualSolution(balance), float)
+        opt = self.optimizer
+        return max_load(self.balance, self.per_newton, opt.min_activation, opt.max_activation,
+                        where=f" ({self.case.direction} test)")
+
+    def minimum(self) -> float:
+        """Smallest feasible load (N); > 0 if the posture cannot be held without the load."""
+        return min_load(self.balance, self.per_newton, self.optimizer.min_activation, self.optimizer.max_activation)
 
     def sweep(self, step: float = THESIS_STEP, limit: float = SWEEP_LIMIT):
         """The thesis' search: static optimisation at 0, step, 2 step, ... until it fails.
@@ -219,7 +250,7 @@ def _near_maximum(problem: StrengthProblem, f_max: float) -> StaticResult:
             return problem.solve(f_max * (1 - shrink))
         except StaticInfeasibleError:
             continue
-    return problem.solve(0.0)
+    return problem.solve(f_max)
 
 
 def strength(problem: StrengthProblem, sweep: bool = True, step: float = THESIS_STEP, limit: float = SWEEP_LIMIT) -> StrengthResult:
@@ -228,8 +259,8 @@ def strength(problem: StrengthProblem, sweep: bool = True, step: float = THESIS_
     f_max, sensitivity = problem.maximum()
     frame = _near_maximum(problem, f_max)
     limiting, ranked = _limiting(problem.coordinates, sensitivity)
-    result = StrengthResult(problem.case.direction, f_max, limiting, ranked, frame.at_upper_bound, frame.activations,
-                            problem.case, sweep_step=step)
+    result = StrengthResult(problem.case.direction, f_max, problem.minimum(), limiting, ranked, frame.at_upper_bound,
+                            frame.activations, problem.case, sweep_step=step)
     if sweep:
         result.sweep_force, result.sweep_first_failure, result.sweep_solves, _ = problem.sweep(step, limit)
     result.in_vivo = in_vivo_comparison(problem.case.direction, f_max)
@@ -325,30 +356,42 @@ NOTES = (
 )
 
 
-def strength_report(results: dict[str, StrengthResult], model, options: dict) -> dict:
-    """JSON-ready report of `isometric_strength` results."""
+def strength_report(results: dict, model, options: dict) -> dict:
+    """JSON-ready report of `isometric_strength` results (a value may be an error message instead)."""
     return {
         "model": model.spec.name, "dofs": model.dofs, "posture": "upright (q = 0), pelvis locked",
-        "options": options, "results": {d: r.summary() for d, r in results.items()},
-        "total_time_s": sum(r.time for r in results.values()), "notes": list(NOTES),
+        "options": options,
+        "results": {d: r.summary() if isinstance(r, StrengthResult) else {"direction": d, "error": str(r)} for d, r in results.items()},
+        "total_time_s": sum(r.time for r in results.values() if isinstance(r, StrengthResult)), "notes": list(NOTES),
     }
 
 
 def format_strength(report: dict) -> str:
     lines = [f"isometric strength, {report['model']} ({report['dofs']}), {report['posture']}"]
     for d, r in report["results"].items():
+        if "error" in r:
+            lines.append(f"{d:9s} failed: {r['error']}")
+            continue
         sweep = r["sweep"]
-        swept = f"sweep {sweep['last_feasible_N']} N ({sweep['solves']} solves)" if sweep["solves"] else "sweep not run"
+        if not sweep["solves"]:
+            swept = "sweep not run"
+        elif sweep["last_feasible_N"] is None:
+            swept = "sweep fails at 0 N"
+        else:
+            swept = f"sweep {sweep['last_feasible_N']:.0f} N ({sweep['solves']} solves)"
         lines.append(f"{d:9s} {r['max_force_N']:8.1f} N direct, {swept}; limited at {r['limiting_coordinate']}; "
                      f"{len(r['muscles_at_upper_bound'])} muscles at the upper bound")
         lines.append(f"          load: {r['load']}")
+        if r["min_feasible_force_N"] > 1e-6:
+            lines.append(f"          the unloaded posture is infeasible: loads below {r['min_feasible_force_N']:.1f} N fail too")
         for v in r.get("variants", {}).values():
             lines.append(f"          variant: {v['load']}: {v['max_force_N']:.1f} N, limited at {v['limiting_coordinate']}")
         for row in r["in_vivo"]:
             ratio = row["ratio_model_to_reference"]
-            ratio = f"model/ref {ratio:.2f}, within 1 SD: {row['within_one_sd']}" if isinstance(ratio, float) else "no reference"
+            value = (f"{row['mean_N']} N; model/ref {ratio:.2f}, within 1 SD: {row['within_one_sd']}"
+                     if isinstance(ratio, float) else "no reference")
             tag = " (thesis' source)" if row["thesis_source"] else ""
-            lines.append(f"          vs {row['reference']}{tag}: {row['mean_N']} N; {ratio}")
+            lines.append(f"          vs {row['reference']}{tag}: {value}")
     lines.append(f"total {report['total_time_s']:.2f} s")
     return "\n".join(lines)
 
@@ -378,8 +421,13 @@ def _cmd_strength(args) -> int:
     model = load_model(dofs="spine3d")
     directions = DIRECTIONS if args.direction == "all" else (args.direction,)
     options = {"p": args.p, "min_activation": args.min_activation, "strength_scale": args.strength_scale}
-    results = isometric_strength(model, directions, shoulder=args.shoulder, sweep=not args.no_sweep, step=args.step,
-                                 locked=args.lock, **options)
+    results = {}
+    for direction in directions:
+        try:
+            results.update(isometric_strength(model, (direction,), shoulder=args.shoulder, sweep=not args.no_sweep,
+                                              step=args.step, locked=args.lock, **options))
+        except StaticInfeasibleError as err:
+            results[direction] = err
     report = strength_report(results, model, {**options, "shoulder": args.shoulder, "locked": args.lock, "step_N": args.step})
     print_json(report) if args.json else print(format_strength(report))
-    return 0
+    return 0 if all(isinstance(r, StrengthResult) for r in results.values()) else 1
