@@ -34,7 +34,7 @@ class TrunkOptions:
     tendon: str = "rigid"
     kp: float | dict | np.ndarray = 0.0  # stretch-reflex position gain (scalar, per group, or per muscle)
     kv: float | dict | np.ndarray = 0.0  # velocity gain
-    l_desired: float = 1.0
+    l_desired: float | str | np.ndarray = 1.0  # seed eq. 3.2 (1 = optimal fiber length); "neutral": l_n at q = 0
     reflex_delay: float = 0.0  # s
     feedforward: np.ndarray | None = None  # constant excitation; None -> minimum activation
     stiffness: float | np.ndarray = DEFAULT_STIFFNESS  # Nm/rad per lumbar level
@@ -68,6 +68,18 @@ class TrunkDiagram:
     loggers: dict[str, VectorLogSink]
     fe_indices: np.ndarray  # indices of the lumbar flexion-extension coordinates in q
     feedforward: np.ndarray  # the constant feed-forward excitation
+
+
+def _desired_length(model, opts: TrunkOptions, params) -> np.ndarray:
+    """The reflex set point per muscle; "neutral" = normalised fiber length at the neutral posture."""
+    if isinstance(opts.l_desired, str):
+        if opts.l_desired != "neutral":
+            raise ValueError(f"l_desired={opts.l_desired!r}; expected a number, an array or 'neutral'")
+        from trunk_drake.muscle import thelen
+
+        path = model.path_state(np.zeros(len(model.coordinates)), np.zeros(len(model.coordinates)))
+        return thelen.rigid_kinematics(path.lengths, path.velocities, params, opts.constants).normalized_fiber_length
+    return opts.per_muscle(model, opts.l_desired)
 
 
 def rotation_coordinates(model) -> np.ndarray:
@@ -111,7 +123,8 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
     muscles = builder.AddNamedSystem("muscles", MuscleSystem(base, opts.constants, opts.tendon, params, mask=opts.muscle_mask))
     reflex = builder.AddNamedSystem(
         "stretch_reflex",
-        StretchReflex(n, opts.per_muscle(base, opts.kp), opts.per_muscle(base, opts.kv), opts.l_desired, opts.constants.minimum_activation),
+        StretchReflex(n, opts.per_muscle(base, opts.kp), opts.per_muscle(base, opts.kv), _desired_length(base, opts, params),
+                      opts.constants.minimum_activation),
     )
     feedforward = opts.feedforward if opts.feedforward is not None else np.full(n, opts.constants.minimum_activation)
     feedforward = np.asarray(feedforward, dtype=float)
@@ -165,8 +178,6 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
     for name in ("activation", "tendon_force", "normalized_fiber_length", "normalized_fiber_velocity", "fiber_length"):
         log(name, muscles.GetOutputPort(name))
     log("excitation", reflex.GetOutputPort("excitation"))
-    if pert is not None:
-        log("platform", pert.GetOutputPort("platform"))
     diagram = builder.Build()
     diagram.set_name("trunk")
     return TrunkDiagram(diagram, base, opts, plant, paths, muscles, reflex, bushings, pert, loggers, fe, feedforward)

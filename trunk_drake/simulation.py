@@ -209,7 +209,7 @@ def _perturbation(perturbation, bandwidth, seed):
             raise ValueError(f"perturbation={perturbation!r}; expected 'multisine', None or a signal object")
         from trunk_drake.signals import make_multisine
 
-        return make_multisine(f_max=float(bandwidth), seed=seed)
+        return make_multisine(f_max=float(bandwidth), seed=seed, fade_shape="quintic")  # continuous acceleration
     if not hasattr(perturbation, "evaluate"):
         raise ValueError("perturbation must have evaluate(t) -> (x, v, a)")
     return perturbation
@@ -242,7 +242,8 @@ def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, se
     nq = td.plant.num_positions()
     q, v = x[:, :nq], x[:, nq:]
     coords = list(td.model.coordinates)
-    platform = logs["platform"] if "platform" in logs else np.zeros((len(t), 3))
+    # the platform signal is known analytically: sample it exactly (not from the step-wise log)
+    platform = np.column_stack(signal.evaluate(t)) if signal is not None else np.zeros((len(t), 3))
     if td.model.dofs == "sagittal" and not td.model.pelvis_free:  # prescribed: the pelvis follows the platform
         coords = ["pelvis_tx", *coords]
         q = np.column_stack([platform[:, 0], q])

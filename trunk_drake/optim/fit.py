@@ -1,0 +1,407 @@
+"""Reflex-gain fitting (seed sections 3.2.2 and 4.8): kp and kv per muscle group by
+Levenberg-Marquardt nonlinear least squares on time-domain simulations.
+
+The parameters are log10 of the gains, bounded to [0.001, 1] (seed 4.8). Each step solves
+the bounded, damped Gauss-Newton subproblem as a quadratic program in Drake's
+MathematicalProgram. The Jacobian comes from forward differences (one simulation per gain,
+in parallel worker processes, each with its own model: Drake objects are not picklable)
+and is kept current between recomputations by Broyden's rank-one secant updates (the secant
+Levenberg-Marquardt method, Madsen, Nielsen & Tingleff 2004, "Methods for non-linear least
+squares problems", section 3.4), so an iteration usually costs one simulation per trial.
+Residuals are model minus measured kinematics divided by the measurement noise, with a
+constant offset per output fitted in closed form (the thesis removed offsets; removing the
+first, noisy sample instead would bias the fit), so the cost is a chi-square and the
+Jacobian gives the gains' covariance. Two
+scenarios: trunk settling (no perturbation, target zero rotation) and car-passenger
+interaction (measured trials).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time as _time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.solvers import MathematicalProgram, Solve
+
+from trunk_drake.diagram import TrunkOptions
+from trunk_drake.signals import estimate_frf, vaf
+from trunk_drake.signals.sampled import SampledSignal
+from trunk_drake.simulation import SimulationError, simulate
+
+GAIN_BOUNDS = (0.001, 1.0)  # seed section 4.8
+THESIS_START = {"car": 0.1, "settling": 0.001}  # seed Tables 4.2-4.3: initial values (mostly)
+OUTPUT_NAMES = ("lumbar_rotation", "L5_S1_FE", "L4_L5_FE", "L3_L4_FE", "L2_L3_FE", "L1_L2_FE")
+
+
+@dataclass
+class FitTarget:
+    """One comparison between simulation and data on the data's uniform time grid."""
+
+    name: str
+    time: np.ndarray  # s, uniform, starting at 0
+    outputs: dict[str, np.ndarray]  # measured (rad), offset removed
+    noise: dict[str, float]  # standard deviation per output (rad): the residual weights
+    signal: object | None = None  # platform signal evaluate(t) -> (x, v, a); None: no perturbation
+    platform: np.ndarray | None = None  # measured platform displacement (m), for the FRF
+    period: float | None = None  # multisine period (s), for the FRF
+    steady_start: float = 2.0  # first sample of whole periods (after the fade-in), s
+
+    @property
+    def fs(self) -> float:
+        return 1.0 / float(np.median(np.diff(self.time)))
+
+
+def targets_from_trials(trials, outputs=("lumbar_rotation",), noise: float | dict = np.radians(0.1),
+                        lowpass_hz: float | None = None, period: float = 20.0, steady_start: float = 2.0) -> list[FitTarget]:
+    """Fit targets from measured trials (trunk_drake.io.Trial): platform displacement drives
+    the prescribed pelvis motion; `outputs` are compared (total and/or per-level angles)."""
+    targets = []
+    for k, trial in enumerate(trials):
+        where = trial.source or f"trial {k}"
+        if trial.platform_displacement is None and trial.pelvis_displacement is None:
+            raise ValueError(f"{where}: no platform or pelvis displacement column to drive the simulation")
+        x = trial.platform_displacement if trial.platform_displacement is not None else trial.pelvis_displacement
+        t = trial.time - trial.time[0]
+        measured = {}
+        for name in outputs:
+            series = trial.lumbar_rotation if name == "lumbar_rotation" else trial.levels.get(name)
+            if name == "lumbar_rotation" and series is None and len(trial.levels) == 5:
+                series = sum(trial.levels.values())
+            if series is None:
+                raise ValueError(f"{where}: output {name!r} is not in the trial (columns: {sorted(trial.column_map)})")
+            measured[name] = np.asarray(series, float) - series[0]
+        sigma = {n: float(noise[n] if isinstance(noise, dict) else noise) for n in outputs}
+        targets.append(FitTarget(where, t, measured, sigma, SampledSignal(t, x - x[0], lowpass_hz), x - x[0], period, steady_start))
+    return targets
+
+
+def settling_target(duration: float = 5.0, fs: float = 50.0, noise: float = np.radians(0.1)) -> FitTarget:
+    """Trunk settling (seed 4.8.1): no perturbation, the target is zero lumbar rotation."""
+    t = np.arange(int(round(duration * fs)) + 1) / fs
+    return FitTarget("settling", t, {"lumbar_rotation": np.zeros_like(t)}, {"lumbar_rotation": noise})
+
+
+@dataclass
+class GainLayout:
+    """Parameter vector x = log10([kp per group..., kv per group...])."""
+
+    groups: tuple[str, ...]
+
+    @property
+    def names(self) -> list[str]:
+        return [f"kp.{g}" for g in self.groups] + [f"kv.{g}" for g in self.groups]
+
+    def gains(self, x) -> dict[str, dict[str, float]]:
+        g = 10.0 ** np.asarray(x, float)
+        n = len(self.groups)
+        return {"kp": dict(zip(self.groups, g[:n].tolist())), "kv": dict(zip(self.groups, g[n:].tolist()))}
+
+    def members(self, model) -> list[np.ndarray]:
+        """Muscle indices of each group."""
+        index = {m: i for i, m in enumerate(model.muscles)}
+        return [np.array([index[m] for m in model.groups[g]], dtype=int) for g in self.groups]
+
+    def vector(self, gains: dict) -> np.ndarray:
+        values = [gains["kp"][g] for g in self.groups] + [gains["kv"][g] for g in self.groups]
+        return np.log10(np.clip(values, *GAIN_BOUNDS))
+
+
+class Objective:
+    """Weighted residuals of all targets for one gain vector (runs the simulations)."""
+
+    def __init__(self, model, targets: list[FitTarget], layout: GainLayout, options: TrunkOptions, accuracy: float = 1e-2):
+        self.model, self.targets, self.layout, self.options, self.accuracy = model, targets, layout, options, accuracy
+
+    def simulate(self, x, target: FitTarget):
+        return simulate(self.model, duration=float(target.time[-1]), perturbation=target.signal, options=self.options,
+                        log_rate=target.fs, accuracy=self.accuracy, **self.layout.gains(x))
+
+    def outputs(self, result, target: FitTarget) -> dict[str, np.ndarray]:
+        out = {}
+        for name in target.outputs:
+            series = result.lumbar_rotation if name == "lumbar_rotation" else result.coordinate(name)
+            series = np.interp(target.time, result.time, series)
+            out[name] = series - series[0]
+        return out
+
+    def __call__(self, x) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals, and per kp parameter whether its length reflex ever engaged.
+
+        A group whose fibers never exceed the set point l_d has (l_n - l_d)+ = 0 throughout:
+        its kp has no effect near x, so its Jacobian column is exactly zero.
+        """
+        parts, engaged = [], np.zeros(len(self.layout.groups), dtype=bool)
+        members = self.layout.members(self.model)
+        for target in self.targets:
+            try:
+                result = self.simulate(x, target)
+            except SimulationError:  # an unstable gain set: a large, finite residual keeps the search going
+                model_out = {n: np.full_like(target.time, np.radians(90.0)) for n in target.outputs}
+                engaged[:] = True
+            else:
+                model_out = self.outputs(result, target)
+                stretch = result.normalized_fiber_length.max(axis=0) - self.options.per_muscle(self.model, self.options.l_desired) \
+                    if not isinstance(self.options.l_desired, str) else np.ones(self.model.n_muscles)
+                engaged |= np.array([np.any(stretch[m] > 0) for m in members])
+            for name, measured in target.outputs.items():
+                difference = model_out[name] - measured
+                parts.append((difference - difference.mean()) / target.noise[name])  # offset fitted in closed form
+        return np.concatenate(parts), engaged
+
+
+_WORKER: Objective | None = None
+
+
+def _init_worker(spec, dofs, targets, layout, options, accuracy):
+    global _WORKER
+    from trunk_drake.model.trunk_model import load_model
+
+    _WORKER = Objective(load_model(dofs, spec=spec), targets, layout, options, accuracy)
+
+
+def _evaluate(x):
+    return _WORKER(x)
+
+
+@dataclass
+class FitStart:
+    """One start of the multi-start search."""
+
+    x0: np.ndarray
+    x: np.ndarray
+    cost: float
+    iterations: int
+    simulations: int
+    status: str
+
+
+@dataclass
+class FitResult:
+    """Fitted reflex gains with uncertainty, goodness of fit and convergence history."""
+
+    gains: dict[str, dict[str, float]]  # {"kp": {group: value}, "kv": {...}}
+    std: dict[str, dict[str, float]]  # one standard deviation, same layout
+    parameter_names: list[str]
+    covariance_log10: np.ndarray  # covariance of log10(gains)
+    cost: float  # 0.5 * sum of squared weighted residuals
+    vaf: dict[str, dict[str, float]]  # per target and output
+    frf: dict[str, dict]  # per target: {"frequencies", "data", "model"} (complex gains, rad/m)
+    history: list[dict]  # every evaluated point: start, cost, gains
+    starts: list[FitStart]
+    n_simulations: int
+    wall_time_s: float
+    options: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        frf = {name: {"frequencies_hz": f["frequencies"].tolist(),
+                      "data_gain": np.abs(f["data"]).tolist(), "data_phase_deg": np.degrees(np.angle(f["data"])).tolist(),
+                      "model_gain": np.abs(f["model"]).tolist(), "model_phase_deg": np.degrees(np.angle(f["model"])).tolist()}
+               for name, f in self.frf.items()}
+        return {"gains": self.gains, "std": self.std, "cost": self.cost, "vaf": self.vaf, "frf": frf,
+                "n_simulations": self.n_simulations, "wall_time_s": self.wall_time_s,
+                "starts": [{"start": 10.0 ** s.x0, "end": 10.0 ** s.x, "cost": s.cost, "iterations": s.iterations,
+                            "simulations": s.simulations, "status": s.status} for s in self.starts],
+                "history": self.history, "options": self.options}
+
+
+def start_points(layout: GainLayout, scenario: str, n_starts: int, seed: int = 0, start=None) -> list[np.ndarray]:
+    """The first start is `start` (gains dict) or the thesis' initial value; then 0.05 for all
+    gains; then log-uniform random points in the bounds."""
+    n = len(layout.names)
+    first = layout.vector(start) if start is not None else np.full(n, np.log10(THESIS_START[scenario]))
+    points = [first, np.full(n, np.log10(0.05))]
+    rng = np.random.default_rng(seed)
+    lo, hi = np.log10(GAIN_BOUNDS)
+    while len(points) < n_starts:
+        points.append(rng.uniform(lo + 0.5, hi - 0.3, n))
+    return points[:n_starts]
+
+
+def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, scenario: str = "car", options: TrunkOptions | None = None,
+                     start=None, n_starts: int = 1, workers: int = 2, max_iterations: int = 12, fd_step: float = 0.05,
+                     tolerance: float = 1e-3, accuracy: float = 1e-2, seed: int = 0, progress: bool = True) -> FitResult:
+    """Fit kp and kv of each muscle group to `targets` (see targets_from_trials / settling_target).
+
+    `options` fixes everything else of the diagram (co-activation, bushings, pelvis mode).
+    Bounded secant Levenberg-Marquardt (see the module docstring) with a parallel
+    forward-difference Jacobian (`fd_step` in log10 units); `n_starts` starts (multi-start),
+    the best kept. Each start stops when an accepted step lowers the cost by less than
+    `tolerance` (relative) or after `max_iterations`.
+    """
+    if scenario not in THESIS_START:
+        raise ValueError(f"scenario={scenario!r}; expected one of {sorted(THESIS_START)}")
+    if not targets:
+        raise ValueError("no fit targets: give measured trials (car) or settling_target()")
+    layout = GainLayout(tuple(groups or model.groups))
+    unknown = set(layout.groups) - set(model.groups)
+    if unknown:
+        raise ValueError(f"unknown muscle groups {sorted(unknown)}; groups: {sorted(model.groups)}")
+    options = options or TrunkOptions()
+    lo, hi = np.log10(GAIN_BOUNDS)
+    history: list[dict] = []
+    wall = _time.perf_counter()
+    cache: dict[bytes, np.ndarray] = {}
+    counter = {"simulations": 0}
+
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
+                               initargs=(model.spec, model.dofs, targets, layout, options, accuracy)) if workers > 1 else None
+    local = None if pool else Objective(model, targets, layout, options, accuracy)
+
+    def evaluate_many(points):
+        todo = [p for p in points if p.tobytes() not in cache]
+        results = list(pool.map(_evaluate, todo)) if pool else [local(p) for p in todo]
+        for p, (r, engaged) in zip(todo, results):
+            cache[p.tobytes()] = (r, engaged)
+            counter["simulations"] += len(targets)
+            history.append({"start": current["start"], "cost": float(0.5 * r @ r), "gains": layout.gains(p)})
+        return [cache[p.tobytes()] for p in points]
+
+    def fun(x):
+        return evaluate_many([np.asarray(x, float)])[0][0]
+
+    def jac(x):
+        x = np.asarray(x, float)
+        r0, engaged = evaluate_many([x])[0]
+        steps = np.where(x + fd_step <= hi, fd_step, -fd_step)
+        active = np.concatenate([engaged, np.ones(len(layout.groups), dtype=bool)])  # kp columns, then kv
+        points = [x + np.eye(len(x))[j] * steps[j] for j in np.flatnonzero(active)]
+        J = np.zeros((r0.size, len(x)))
+        for j, (column, _) in zip(np.flatnonzero(active), evaluate_many(points)):
+            J[:, j] = (column - r0) / steps[j]
+        return J
+
+    current = {"start": 0}
+    starts = []
+    try:
+        for k, x0 in enumerate(start_points(layout, scenario, n_starts, seed, start)):
+            current["start"] = k
+            before = counter["simulations"]
+            x, _, r, iterations, status = levenberg_marquardt(fun, jac, np.clip(x0, lo, hi), lo, hi, max_iterations,
+                                                              tolerance, progress=progress, label=f"start {k + 1}/{n_starts}")
+            starts.append(FitStart(np.asarray(x0), x, float(0.5 * r @ r), iterations, counter["simulations"] - before, status))
+        best = min(starts, key=lambda s: s.cost)
+        J = jac(best.x)  # a fresh finite-difference Jacobian for the covariance
+        r = fun(best.x)
+    finally:
+        if pool:
+            pool.shutdown()
+
+    dof = max(1, r.size - best.x.size)
+    cov = float(r @ r) / dof * _inverse_or_inf(J.T @ J)
+    gains = layout.gains(best.x)
+    std_x = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    std_flat = (10.0 ** best.x) * np.log(10.0) * std_x
+    n = len(layout.groups)
+    std = {"kp": dict(zip(layout.groups, std_flat[:n].tolist())), "kv": dict(zip(layout.groups, std_flat[n:].tolist()))}
+    objective = local or Objective(model, targets, layout, options, accuracy)
+    vafs, frfs = goodness_of_fit(objective, best.x, targets)
+    return FitResult(gains, std, layout.names, cov, float(0.5 * r @ r), vafs, frfs, history, starts,
+                     counter["simulations"] + len(targets), _time.perf_counter() - wall,
+                     options={"scenario": scenario, "groups": list(layout.groups), "n_starts": n_starts,
+                              "fd_step": fd_step, "accuracy": accuracy, "noise": {t.name: t.noise for t in targets}})
+
+
+def _inverse_or_inf(A: np.ndarray, rcond: float = 1e-12) -> np.ndarray:
+    """Inverse of a symmetric positive semi-definite matrix; directions it cannot resolve get
+    infinite variance (a pseudo-inverse would wrongly report them as exact)."""
+    w, V = np.linalg.eigh(A)
+    with np.errstate(divide="ignore"):
+        inv_w = np.where(w > rcond * max(w.max(), 0.0), 1.0 / w, np.inf)
+    finite = V @ np.diag(np.where(np.isfinite(inv_w), inv_w, 0.0)) @ V.T
+    unresolved = (V[:, ~np.isfinite(inv_w)] ** 2).sum(axis=1) > 1e-12
+    out = finite.copy()
+    out[unresolved, :] = np.inf
+    out[:, unresolved] = np.inf
+    return out
+
+
+def _bounded_step(J, r, mu, lower, upper) -> np.ndarray:
+    """argmin_d 0.5|J d + r|^2 + 0.5 mu |d|^2 subject to lower <= d <= upper (a QP)."""
+    prog = MathematicalProgram()
+    d = prog.NewContinuousVariables(J.shape[1], "d")
+    prog.AddQuadraticCost(J.T @ J + mu * np.eye(J.shape[1]), J.T @ r, d, is_convex=True)
+    prog.AddBoundingBoxConstraint(lower, upper, d)
+    result = Solve(prog)
+    if not result.is_success():
+        raise RuntimeError(f"Levenberg-Marquardt step QP failed: {result.get_solution_result()}")
+    return np.clip(result.GetSolution(d), lower, upper)
+
+
+def levenberg_marquardt(fun, jac, x0, lo, hi, max_iterations: int = 15, tolerance: float = 1e-3,
+                        refresh_every: int = 5, progress: bool = False, label: str = ""):
+    """Bounded secant Levenberg-Marquardt: returns (x, J, r, iterations, status).
+
+    Damping update of Nielsen (1999); the Jacobian is recomputed by `jac` at the start, every
+    `refresh_every` iterations and after two rejected steps in a row, otherwise Broyden-updated.
+    Stops when an accepted step lowers the cost by less than `tolerance` (relative).
+    """
+    x = np.asarray(x0, float)
+    r = fun(x)
+    J = jac(x)
+    cost = 0.5 * r @ r
+    mu = 1e-3 * max(np.diag(J.T @ J).max(), 1e-12)
+    nu, rejected, since_refresh = 2.0, 0, 0
+    status = f"maximum iterations ({max_iterations}) reached"
+    for it in range(1, max_iterations + 1):
+        d = _bounded_step(J, r, mu, lo - x, hi - x)
+        if np.linalg.norm(d) < 1e-6 * (np.linalg.norm(x) + 1e-6):
+            status = "step below tolerance"
+            break
+        r_new = fun(x + d)
+        cost_new = 0.5 * r_new @ r_new
+        predicted = cost - 0.5 * np.sum((J @ d + r) ** 2)
+        rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
+        J = J + np.outer(r_new - r - J @ d, d) / (d @ d)  # Broyden secant update
+        since_refresh += 1
+        if rho > 0:
+            relative = (cost - cost_new) / cost
+            x, r, cost = x + d, r_new, cost_new
+            mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+            nu, rejected = 2.0, 0
+            if progress:
+                print(f"  {label} iteration {it}: cost {cost:.6g} (-{100 * relative:.2f} %), mu {mu:.3g}", flush=True)
+            if relative < tolerance:
+                status = f"relative cost reduction below {tolerance}"
+                break
+        else:
+            mu *= nu
+            nu *= 2.0
+            rejected += 1
+            if progress:
+                print(f"  {label} iteration {it}: step rejected (rho {rho:.3g}), mu {mu:.3g}", flush=True)
+        if since_refresh >= refresh_every or rejected >= 2:
+            J, since_refresh, rejected = jac(x), 0, 0
+    return x, J, r, it, status
+
+
+def goodness_of_fit(objective: Objective, x, targets: list[FitTarget]):
+    """VAF per target/output and the FRF (lumbar rotation / platform) of data and model."""
+    vafs, frfs = {}, {}
+    for target in targets:
+        result = objective.simulate(x, target)
+        model_out = objective.outputs(result, target)
+        aligned = {n: model_out[n] - (model_out[n] - target.outputs[n]).mean() for n in target.outputs}
+        vafs[target.name] = {n: float(vaf(target.outputs[n] - target.outputs[n].mean(), aligned[n] - target.outputs[n].mean()))
+                             for n in target.outputs}
+        if target.platform is not None and target.period and "lumbar_rotation" in target.outputs:
+            frfs[target.name] = frf_pair(target, target.outputs["lumbar_rotation"], aligned["lumbar_rotation"])
+    return vafs, frfs
+
+
+def frf_pair(target: FitTarget, measured, modelled) -> dict:
+    """FRF of platform displacement to rotation (rad/m) for data and model over whole periods."""
+    fs = target.fs
+    i0 = int(round(target.steady_start * fs))
+    per = int(round(target.period * fs))
+    n_periods = (len(target.time) - i0) // per
+    if n_periods < 1:
+        raise ValueError(f"{target.name}: fewer than one whole {target.period} s period after {target.steady_start} s")
+    window = slice(i0, i0 + n_periods * per)
+    u = target.platform[window]
+    data = estimate_frf(u, measured[window], fs, target.period)
+    model = estimate_frf(u, modelled[window], fs, target.period)
+    return {"frequencies": data.frequencies, "data": data.H, "model": model.H,
+            "data_lower": data.gain_lower, "data_upper": data.gain_upper, "coherence": data.coherence}
