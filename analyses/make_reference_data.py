@@ -59,16 +59,19 @@ def main():
                 "noise_deg": NOISE_DEG, "truth": "models/reference/truth.toml"}
         write_csv(OUT / f"{name}.csv", time=result.time, columns=columns, in_degrees=False, metadata=meta)
         print(f"{name}: {result.sim_time_s:.0f} s simulated, lumbar rotation rms {np.degrees(np.std(result.lumbar_rotation)):.2f} deg")
-    lines = ["# Truth configuration of the SYNTHETIC reference trials (analyses/make_reference_data.py).",
-             "# Everything except the reflex gains is given to the fit as known experimental conditions.", "",
-             "[config]"]
-    lines += [f"{k} = {v!r}" if isinstance(v, str) else f"{k} = {v}" for k, v in CONFIG.items()]
-    lines += [f"noise_deg = {NOISE_DEG}", f"sampling_hz = {FS}", "", "[trials]"]
-    lines += [f'{name} = {{ bandwidth_hz = {bw}, multisine_seed = {seed} }}' for name, bw, seed in TRIALS]
+    conditions = ["# Experimental conditions of the SYNTHETIC reference trials (analyses/make_reference_data.py):",
+                  "# known to the fit. The reflex gains to be recovered are in truth.toml.", "",
+                  "[conditions]"]
+    conditions += [f'{k} = "{v}"' if isinstance(v, str) else f"{k} = {v}" for k, v in CONFIG.items()]
+    conditions += ['feedforward_file = "truth_feedforward.csv"', f"noise_deg = {NOISE_DEG}", f"sampling_hz = {FS}",
+                   "period_s = 20.0", "fade_s = 2.0"]
+    (OUT / "conditions.toml").write_text("\n".join(conditions) + "\n")
+    truth = ["# Truth reflex gains of the SYNTHETIC reference trials (analyses/make_reference_data.py).",
+             "# The fit must recover them; conditions.toml holds everything else.", "", "[trials]"]
+    truth += [f"{name} = {{ bandwidth_hz = {bw}, multisine_seed = {seed} }}" for name, bw, seed in TRIALS]
     for key in ("kp", "kv"):
-        lines += ["", f"[gains.{key}]"] + [f"{g} = {v}" for g, v in TRUTH[key].items()]
-    (OUT / "truth.toml").write_text("\n".join(lines).replace("'", '"') + "\n")
-
+        truth += ["", f"[{key}]"] + [f"{g} = {v}" for g, v in TRUTH[key].items()]
+    (OUT / "truth.toml").write_text("\n".join(truth) + "\n")
 
 if __name__ == "__main__":
     main()

@@ -1,6 +1,7 @@
 """trunk-drake: neuromusculoskeletal simulation of the seated human lumbar spine on Drake."""
 
 from trunk_drake.model.trunk_model import TrunkModel, load_model
+from trunk_drake.optim.fit import fit_reflex_gains
 from trunk_drake.optim.static import coactivation, static_optimization
 from trunk_drake.optim.strength import isometric_strength
 from trunk_drake.simulation import SimulationResult, simulate
@@ -16,11 +17,3 @@ __all__ = [
     "fit_reflex_gains",
 ]
 
-
-def __getattr__(name):
-    # the fitting module starts process pools; import it only when asked for
-    if name == "fit_reflex_gains":
-        from trunk_drake.optim.fit import fit_reflex_gains
-
-        return fit_reflex_gains
-    raise AttributeError(f"module 'trunk_drake' has no attribute {name!r}")

@@ -14,6 +14,7 @@ import sys
 COMMAND_MODULES = (
     "trunk_drake.model.info",
     "trunk_drake.simulation",
+    "trunk_drake.optim.fit",
     "trunk_drake.optim.strength",
 )
 

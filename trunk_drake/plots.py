@@ -44,3 +44,56 @@ def plot_simulation(result, path) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def plot_fit(result, out_dir) -> dict:
+    """Time-domain fit (seed Fig. 4.14), FRF of data and model (Fig. 4.15), convergence."""
+    out = Path(out_dir)
+    files = {}
+    n = len(result.series)
+    fig, axes = plt.subplots(n, 1, figsize=(9, 2.6 * n), squeeze=False)
+    for ax, (name, s) in zip(axes[:, 0], result.series.items()):
+        vaf = result.vaf[name].get(s["output"], float("nan"))
+        ax.plot(s["time"], np.degrees(s["data"]), color="0.6", lw=1, label="data")
+        ax.plot(s["time"], np.degrees(s["model"]), "k", lw=1, label=f"model (VAF {100 * vaf:.1f} %)")
+        ax.set_title(Path(name).name, fontsize=9)
+        ax.set_ylabel(f"{s['output']} (deg)")
+        ax.legend(loc="upper right", fontsize=8)
+    axes[-1, 0].set_xlabel("time (s)")
+    fig.tight_layout()
+    files["time_plot"] = out / "fit_time.png"
+    fig.savefig(files["time_plot"], dpi=110)
+    plt.close(fig)
+
+    if result.frf:
+        fig, (ax_g, ax_p) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+        for k, (name, f) in enumerate(result.frf.items()):
+            color = f"C{k}"
+            freq = f["frequencies"]
+            ax_g.loglog(freq, np.degrees(np.abs(f["data"])), "o", color=color, ms=4, mfc="none", label=f"data {Path(name).stem}")
+            ax_g.fill_between(freq, np.degrees(f["data_lower"]), np.degrees(f["data_upper"]), color=color, alpha=0.15)
+            ax_g.loglog(freq, np.degrees(np.abs(f["model"])), "-", color=color, label="model")
+            ax_p.semilogx(freq, np.degrees(np.unwrap(np.angle(f["data"]))), "o", color=color, ms=4, mfc="none")
+            ax_p.semilogx(freq, np.degrees(np.unwrap(np.angle(f["model"]))), "-", color=color)
+        ax_g.set_ylabel("gain (deg/m)")
+        ax_g.legend(fontsize=7)
+        ax_p.set_ylabel("phase (deg)")
+        ax_p.set_xlabel("frequency (Hz)")
+        fig.suptitle("lumbar rotation / platform displacement")
+        fig.tight_layout()
+        files["frf_plot"] = out / "fit_frf.png"
+        fig.savefig(files["frf_plot"], dpi=110)
+        plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    for start in sorted({h["start"] for h in result.history}):
+        costs = [h["cost"] for h in result.history if h["start"] == start]
+        ax.semilogy(np.minimum.accumulate(costs), label=f"start {start + 1}")
+    ax.set_xlabel("evaluated gain sets")
+    ax.set_ylabel("best cost so far")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    files["convergence_plot"] = out / "fit_convergence.png"
+    fig.savefig(files["convergence_plot"], dpi=110)
+    plt.close(fig)
+    return files

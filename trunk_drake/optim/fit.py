@@ -53,18 +53,28 @@ class FitTarget:
     def fs(self) -> float:
         return 1.0 / float(np.median(np.diff(self.time)))
 
+    @property
+    def whole_periods(self) -> int:
+        """Number of whole multisine periods after `steady_start` (0 without a period)."""
+        if not self.period or self.platform is None:
+            return 0
+        return int((len(self.time) - round(self.steady_start * self.fs)) // round(self.period * self.fs))
+
 
 def targets_from_trials(trials, outputs=("lumbar_rotation",), noise: float | dict = np.radians(0.1),
-                        lowpass_hz: float | None = None, period: float = 20.0, steady_start: float = 2.0) -> list[FitTarget]:
+                        lowpass_hz: float | None = None, period: float = 20.0, steady_start: float = 2.0,
+                        t_max: float | None = None) -> list[FitTarget]:
     """Fit targets from measured trials (trunk_drake.io.Trial): platform displacement drives
-    the prescribed pelvis motion; `outputs` are compared (total and/or per-level angles)."""
+    the prescribed pelvis motion; `outputs` are compared (total and/or per-level angles),
+    optionally only up to `t_max` seconds."""
     targets = []
     for k, trial in enumerate(trials):
         where = trial.source or f"trial {k}"
         if trial.platform_displacement is None and trial.pelvis_displacement is None:
             raise ValueError(f"{where}: no platform or pelvis displacement column to drive the simulation")
-        x = trial.platform_displacement if trial.platform_displacement is not None else trial.pelvis_displacement
-        t = trial.time - trial.time[0]
+        keep = slice(None) if t_max is None else trial.time - trial.time[0] <= t_max + 1e-9
+        x = (trial.platform_displacement if trial.platform_displacement is not None else trial.pelvis_displacement)[keep]
+        t = (trial.time - trial.time[0])[keep]
         measured = {}
         for name in outputs:
             series = trial.lumbar_rotation if name == "lumbar_rotation" else trial.levels.get(name)
@@ -72,7 +82,7 @@ def targets_from_trials(trials, outputs=("lumbar_rotation",), noise: float | dic
                 series = sum(trial.levels.values())
             if series is None:
                 raise ValueError(f"{where}: output {name!r} is not in the trial (columns: {sorted(trial.column_map)})")
-            measured[name] = np.asarray(series, float) - series[0]
+            measured[name] = np.asarray(series, float)[keep] - series[0]
         sigma = {n: float(noise[n] if isinstance(noise, dict) else noise) for n in outputs}
         targets.append(FitTarget(where, t, measured, sigma, SampledSignal(t, x - x[0], lowpass_hz), x - x[0], period, steady_start))
     return targets
@@ -86,18 +96,22 @@ def settling_target(duration: float = 5.0, fs: float = 50.0, noise: float = np.r
 
 @dataclass
 class GainLayout:
-    """Parameter vector x = log10([kp per group..., kv per group...])."""
+    """Parameter vector x = log10([kp per group..., kv per group...]); groups not fitted keep
+    their `fixed` gains (0 unless given)."""
 
     groups: tuple[str, ...]
+    fixed: dict = field(default_factory=lambda: {"kp": {}, "kv": {}})
 
     @property
     def names(self) -> list[str]:
         return [f"kp.{g}" for g in self.groups] + [f"kv.{g}" for g in self.groups]
 
     def gains(self, x) -> dict[str, dict[str, float]]:
+        """All gains: the fitted groups from x, the others from `fixed`."""
         g = 10.0 ** np.asarray(x, float)
         n = len(self.groups)
-        return {"kp": dict(zip(self.groups, g[:n].tolist())), "kv": dict(zip(self.groups, g[n:].tolist()))}
+        return {"kp": {**self.fixed.get("kp", {}), **dict(zip(self.groups, g[:n].tolist()))},
+                "kv": {**self.fixed.get("kv", {}), **dict(zip(self.groups, g[n:].tolist()))}}
 
     def members(self, model) -> list[np.ndarray]:
         """Muscle indices of each group."""
@@ -189,6 +203,7 @@ class FitResult:
     cost: float  # 0.5 * sum of squared weighted residuals
     vaf: dict[str, dict[str, float]]  # per target and output
     frf: dict[str, dict]  # per target: {"frequencies", "data", "model"} (complex gains, rad/m)
+    series: dict[str, dict]  # per target: {"time", "data", "model"} lumbar rotation (rad), offsets aligned
     history: list[dict]  # every evaluated point: start, cost, gains
     starts: list[FitStart]
     n_simulations: int
@@ -220,12 +235,14 @@ def start_points(layout: GainLayout, scenario: str, n_starts: int, seed: int = 0
     return points[:n_starts]
 
 
-def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, scenario: str = "car", options: TrunkOptions | None = None,
-                     start=None, n_starts: int = 1, workers: int = 2, max_iterations: int = 12, fd_step: float = 0.05,
+def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, fixed_gains: dict | None = None, scenario: str = "car",
+                     options: TrunkOptions | None = None,
+                     start=None, n_starts: int = 1, workers: int = 2, max_iterations: int = 20, fd_step: float = 0.05,
                      tolerance: float = 1e-3, accuracy: float = 1e-2, seed: int = 0, progress: bool = True) -> FitResult:
     """Fit kp and kv of each muscle group to `targets` (see targets_from_trials / settling_target).
 
-    `options` fixes everything else of the diagram (co-activation, bushings, pelvis mode).
+    `options` fixes everything else of the diagram (co-activation, bushings, pelvis mode);
+    groups not in `groups` keep `fixed_gains` ({"kp": {group: value}, "kv": {...}}, else 0).
     Bounded secant Levenberg-Marquardt (see the module docstring) with a parallel
     forward-difference Jacobian (`fd_step` in log10 units); `n_starts` starts (multi-start),
     the best kept. Each start stops when an accepted step lowers the cost by less than
@@ -235,7 +252,7 @@ def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, scenario: 
         raise ValueError(f"scenario={scenario!r}; expected one of {sorted(THESIS_START)}")
     if not targets:
         raise ValueError("no fit targets: give measured trials (car) or settling_target()")
-    layout = GainLayout(tuple(groups or model.groups))
+    layout = GainLayout(tuple(groups or model.groups), fixed_gains or {"kp": {}, "kv": {}})
     unknown = set(layout.groups) - set(model.groups)
     if unknown:
         raise ValueError(f"unknown muscle groups {sorted(unknown)}; groups: {sorted(model.groups)}")
@@ -291,14 +308,14 @@ def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, scenario: 
 
     dof = max(1, r.size - best.x.size)
     cov = float(r @ r) / dof * _inverse_or_inf(J.T @ J)
-    gains = layout.gains(best.x)
+    gains = GainLayout(layout.groups).gains(best.x)
     std_x = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     std_flat = (10.0 ** best.x) * np.log(10.0) * std_x
     n = len(layout.groups)
     std = {"kp": dict(zip(layout.groups, std_flat[:n].tolist())), "kv": dict(zip(layout.groups, std_flat[n:].tolist()))}
     objective = local or Objective(model, targets, layout, options, accuracy)
-    vafs, frfs = goodness_of_fit(objective, best.x, targets)
-    return FitResult(gains, std, layout.names, cov, float(0.5 * r @ r), vafs, frfs, history, starts,
+    vafs, frfs, series = goodness_of_fit(objective, best.x, targets)
+    return FitResult(gains, std, layout.names, cov, float(0.5 * r @ r), vafs, frfs, series, history, starts,
                      counter["simulations"] + len(targets), _time.perf_counter() - wall,
                      options={"scenario": scenario, "groups": list(layout.groups), "n_starts": n_starts,
                               "fd_step": fd_step, "accuracy": accuracy, "noise": {t.name: t.noise for t in targets}})
@@ -331,7 +348,7 @@ def _bounded_step(J, r, mu, lower, upper) -> np.ndarray:
 
 
 def levenberg_marquardt(fun, jac, x0, lo, hi, max_iterations: int = 15, tolerance: float = 1e-3,
-                        refresh_every: int = 5, progress: bool = False, label: str = ""):
+                        refresh_every: int = 4, progress: bool = False, label: str = ""):
     """Bounded secant Levenberg-Marquardt: returns (x, J, r, iterations, status).
 
     Damping update of Nielsen (1999); the Jacobian is recomputed by `jac` at the start, every
@@ -378,30 +395,112 @@ def levenberg_marquardt(fun, jac, x0, lo, hi, max_iterations: int = 15, toleranc
 
 
 def goodness_of_fit(objective: Objective, x, targets: list[FitTarget]):
-    """VAF per target/output and the FRF (lumbar rotation / platform) of data and model."""
-    vafs, frfs = {}, {}
+    """VAF per target/output, the FRF (lumbar rotation / platform) and the time series."""
+    vafs, frfs, series = {}, {}, {}
     for target in targets:
         result = objective.simulate(x, target)
         model_out = objective.outputs(result, target)
         aligned = {n: model_out[n] - (model_out[n] - target.outputs[n]).mean() for n in target.outputs}
         vafs[target.name] = {n: float(vaf(target.outputs[n] - target.outputs[n].mean(), aligned[n] - target.outputs[n].mean()))
                              for n in target.outputs}
-        if target.platform is not None and target.period and "lumbar_rotation" in target.outputs:
-            frfs[target.name] = frf_pair(target, target.outputs["lumbar_rotation"], aligned["lumbar_rotation"])
-    return vafs, frfs
+        name = "lumbar_rotation" if "lumbar_rotation" in target.outputs else next(iter(target.outputs))
+        series[target.name] = {"time": target.time, "data": target.outputs[name], "model": aligned[name], "output": name}
+        if target.whole_periods >= 1 and name == "lumbar_rotation":
+            frfs[target.name] = frf_pair(target, target.outputs[name], aligned[name])
+    return vafs, frfs, series
 
 
 def frf_pair(target: FitTarget, measured, modelled) -> dict:
     """FRF of platform displacement to rotation (rad/m) for data and model over whole periods."""
     fs = target.fs
     i0 = int(round(target.steady_start * fs))
-    per = int(round(target.period * fs))
-    n_periods = (len(target.time) - i0) // per
+    n_periods = target.whole_periods
     if n_periods < 1:
         raise ValueError(f"{target.name}: fewer than one whole {target.period} s period after {target.steady_start} s")
-    window = slice(i0, i0 + n_periods * per)
+    window = slice(i0, i0 + n_periods * int(round(target.period * fs)))
     u = target.platform[window]
     data = estimate_frf(u, measured[window], fs, target.period)
     model = estimate_frf(u, modelled[window], fs, target.period)
     return {"frequencies": data.frequencies, "data": data.H, "model": model.H,
             "data_lower": data.gain_lower, "data_upper": data.gain_upper, "coherence": data.coherence}
+
+
+def write_fit(result: FitResult, out_dir) -> dict:
+    """fit.json, gains.toml (usable as ``trunk-drake simulate --reflex-gains``) and PNG figures."""
+    import json
+    from pathlib import Path
+
+    from trunk_drake.plots import plot_fit
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files = {"json": out / "fit.json", "gains": out / "gains.toml"}
+    files["json"].write_text(json.dumps(result.to_dict(), indent=2, default=_json_default))
+    lines = ["# Reflex gains fitted by trunk-drake (1 SD in comments).", "", "[kp]"]
+    lines += [f"{g} = {v:.6g}  # +- {result.std['kp'][g]:.3g}" for g, v in result.gains["kp"].items()]
+    lines += ["", "[kv]"] + [f"{g} = {v:.6g}  # +- {result.std['kv'][g]:.3g}" for g, v in result.gains["kv"].items()]
+    files["gains"].write_text("\n".join(lines) + "\n")
+    files.update(plot_fit(result, out))
+    return files
+
+
+def _json_default(obj):
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, (np.floating, np.integer, np.bool_)):
+        return obj.item()
+    return str(obj)
+
+
+def add_commands(sub) -> None:
+    """`trunk-drake fit DATA... --out DIR [--json]`."""
+    p = sub.add_parser("fit", help="fit stretch-reflex gains (kp, kv per muscle group) to measured trials",
+                       description="Levenberg-Marquardt fit of the reflex gains to trials (CSV/.sto/.mot or folders). "
+                                   "A conditions.toml beside the data sets the known conditions (bushings, co-activation, noise).")
+    p.add_argument("data", nargs="*", help="trial files or folders (e.g. models/reference); none for --scenario settling")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--scenario", choices=sorted(THESIS_START), default="car")
+    p.add_argument("--conditions", help="TOML with a [conditions] table (default: conditions.toml beside the data)")
+    p.add_argument("--outputs", choices=["total", "levels", "all"], default="all",
+                   help="fit the total lumbar rotation, the five level angles, or both (default)")
+    p.add_argument("--starts", type=int, default=1, help="number of starting points (multi-start)")
+    p.add_argument("--workers", type=int, default=2, help="parallel simulation processes")
+    p.add_argument("--max-iterations", type=int, default=20)
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    p.set_defaults(func=_cmd_fit)
+
+
+def _cmd_fit(args) -> int:
+    import json
+
+    from trunk_drake.io.experiment import load_experiment
+    from trunk_drake.model.trunk_model import load_model
+    from trunk_drake.optim.static import coactivation
+
+    model = load_model("sagittal")
+    names = {"total": ("lumbar_rotation",), "levels": OUTPUT_NAMES[1:], "all": OUTPUT_NAMES}[args.outputs]
+    if args.scenario == "settling":
+        targets = [settling_target()]
+        options = TrunkOptions(feedforward=coactivation(model, 0.02))
+    else:
+        if not args.data:
+            raise ValueError("the car scenario needs measured trials: trunk-drake fit DATA... --out DIR")
+        experiment = load_experiment(args.data, args.conditions)
+        targets = targets_from_trials(experiment.trials, names, experiment.noise_rad, period=experiment.period,
+                                      steady_start=experiment.fade)
+        opts = dict(experiment.options)
+        if "feedforward" not in opts:
+            opts["feedforward"] = coactivation(model, experiment.coactivation_min_activation or 0.02)
+        options = TrunkOptions(**opts)
+    result = fit_reflex_gains(model, targets, scenario=args.scenario, options=options, n_starts=args.starts,
+                              workers=args.workers, max_iterations=args.max_iterations, progress=not args.json)
+    files = write_fit(result, args.out)
+    summary = {"gains": result.gains, "std": result.std, "vaf": result.vaf, "cost": result.cost,
+               "n_simulations": result.n_simulations, "wall_time_s": result.wall_time_s,
+               "files": {k: str(v) for k, v in files.items()}}
+    if args.json:
+        print(json.dumps(summary, indent=2, default=_json_default))
+    else:
+        print(f"fitted {len(result.parameter_names)} gains in {result.wall_time_s:.0f} s ({result.n_simulations} simulations); "
+              f"results in {args.out}")
+    return 0

@@ -1,0 +1,92 @@
+"""Reflex-gain fitting on the synthetic reference data (models/reference, a known truth)."""
+
+import tomllib
+import warnings
+
+import numpy as np
+import pytest
+
+import trunk_drake as td
+from trunk_drake.data import models_dir
+from trunk_drake.diagram import TrunkOptions
+from trunk_drake.io.experiment import load_experiment
+from trunk_drake.optim.fit import (
+    GainLayout, Objective, _inverse_or_inf, fit_reflex_gains, levenberg_marquardt, settling_target, targets_from_trials,
+)
+
+REFERENCE = models_dir() / "reference"
+FITTED = ("sacrospinalis", "external_oblique")  # kp: not engaged (infinite SD) / identifiable; kv: identifiable
+
+
+@pytest.fixture(scope="module")
+def setting():
+    model = td.load_model("sagittal")
+    experiment = load_experiment([REFERENCE / "trial_1hz_a.csv"], REFERENCE / "conditions.toml")
+    truth = tomllib.loads((REFERENCE / "truth.toml").read_text())
+    targets = targets_from_trials(experiment.trials, ("lumbar_rotation", "L5_S1_FE", "L4_L5_FE", "L3_L4_FE", "L2_L3_FE", "L1_L2_FE"),
+                                  experiment.noise_rad, t_max=12.0)
+    return model, TrunkOptions(**experiment.options), targets, {"kp": truth["kp"], "kv": truth["kv"]}
+
+
+def test_cost_at_truth_is_the_noise_floor(setting):
+    model, options, targets, truth = setting
+    layout = GainLayout(tuple(model.groups))
+    r, engaged = Objective(model, targets, layout, options)(layout.vector(truth))
+    expected = 0.5 * r.size  # chi-square: one per sample and output at the truth
+    assert abs(0.5 * r @ r - expected) < 0.1 * expected
+    assert engaged.any() and not engaged.all(), "some groups' length reflexes never engage at rest"
+
+
+def test_fit_recovers_truth_from_three_starts(setting):
+    model, options, targets, truth = setting
+    fixed = {k: {g: v for g, v in truth[k].items() if g not in FITTED} for k in ("kp", "kv")}
+    result = fit_reflex_gains(model, targets, groups=FITTED, fixed_gains=fixed, options=options, n_starts=3,
+                              workers=2, max_iterations=25, progress=False)
+    assert len(result.starts) == 3
+    for start in result.starts:  # every start reaches the noise floor
+        assert start.cost < 1.05 * 0.5 * sum(t.time.size * len(t.outputs) for t in targets), start
+    for kind in ("kp", "kv"):
+        for group in FITTED:
+            value, sd = result.gains[kind][group], result.std[kind][group]
+            assert abs(value - truth[kind][group]) <= 2 * sd, f"{kind}.{group}: {value:.4f} +- {sd:.4f} vs {truth[kind][group]}"
+    assert np.isinf(result.std["kp"]["sacrospinalis"]), "a length reflex that never engages is not identifiable"
+    assert np.isfinite(result.std["kv"]["sacrospinalis"]) and result.std["kv"]["sacrospinalis"] < 0.5 * truth["kv"]["sacrospinalis"]
+    assert result.vaf[targets[0].name]["lumbar_rotation"] > 0.95
+    assert result.n_simulations == len(targets) * (len(result.history) + 1)  # + the final goodness-of-fit run
+
+
+def test_levenberg_marquardt_on_a_known_problem():
+    t = np.linspace(0, 1, 50)
+    truth = np.array([-0.5, -1.2])
+
+    def fun(x):
+        return 10 ** x[0] * np.exp(-t / 10 ** x[1]) - 10 ** truth[0] * np.exp(-t / 10 ** truth[1])
+
+    def jac(x):
+        h = 1e-7
+        return np.column_stack([(fun(x + h * e) - fun(x)) / h for e in np.eye(2)])
+
+    x, _, r, _, status = levenberg_marquardt(fun, jac, np.array([-2.0, 0.0]), np.array([-3.0, -3.0]), np.zeros(2),
+                                             max_iterations=100, tolerance=1e-14)
+    np.testing.assert_allclose(x, truth, atol=1e-5)
+    # a bound is respected exactly when the optimum lies outside
+    x, *_ = levenberg_marquardt(fun, jac, np.array([-2.0, -2.0]), np.array([-3.0, -3.0]), np.array([-0.8, 0.0]),
+                                max_iterations=100, tolerance=1e-12)
+    assert x[0] == pytest.approx(-0.8)
+
+
+def test_unresolved_directions_get_infinite_variance():
+    cov = _inverse_or_inf(np.array([[4.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.0]]))
+    assert cov[0, 0] == pytest.approx(0.25) and cov[1, 1] == pytest.approx(1.0) and np.isinf(cov[2, 2])
+
+
+def test_settling_target_and_bad_input(setting):
+    model, options, targets, _ = setting
+    target = settling_target(duration=1.0)
+    assert target.outputs["lumbar_rotation"].shape == target.time.shape and target.signal is None
+    with pytest.raises(ValueError, match="unknown muscle groups"):
+        fit_reflex_gains(model, targets, groups=("latissimus_dorsi",), options=options, workers=1)
+    with pytest.raises(ValueError, match="no fit targets"):
+        fit_reflex_gains(model, [], options=options, workers=1)
+    with pytest.raises(ValueError, match="output 'T1_FE'"):
+        targets_from_trials(load_experiment([REFERENCE / "trial_1hz_a.csv"]).trials, ("T1_FE",))

@@ -1,0 +1,69 @@
+"""A data set on disk: measured trials plus the experimental conditions known to the fit."""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .trials import Trial, load_trial
+
+TRIAL_SUFFIXES = (".csv", ".sto", ".mot")
+CONDITIONS_FILE = "conditions.toml"
+
+
+@dataclass
+class Experiment:
+    """Trials and conditions. `options` are TrunkOptions overrides (stiffness, damping, ...)."""
+
+    trials: list[Trial]
+    options: dict = field(default_factory=dict)
+    noise_rad: float = float(np.radians(0.1))
+    period: float = 20.0
+    fade: float = 2.0
+    coactivation_min_activation: float | None = None
+    source: str = ""
+
+
+def load_experiment(paths, conditions: str | None = None) -> Experiment:
+    """Trials from files and/or folders (every .csv/.sto/.mot inside), and the conditions from
+    `conditions` or a `conditions.toml` next to the data (defaults otherwise)."""
+    files: list[Path] = []
+    folders: list[Path] = []
+    for p in map(Path, [paths] if isinstance(paths, (str, Path)) else paths):
+        if p.is_dir():
+            folders.append(p)
+            files += sorted(f for f in p.iterdir() if f.suffix in TRIAL_SUFFIXES and not f.name.startswith("truth"))
+        elif p.exists():
+            files.append(p)
+        else:
+            raise FileNotFoundError(f"data path {p} does not exist")
+    if not files:
+        raise ValueError(f"no trial files ({', '.join(TRIAL_SUFFIXES)}) in {[str(p) for p in paths]}")
+    trials = [load_trial(f) for f in files]
+    cond_path = Path(conditions) if conditions else next((f / CONDITIONS_FILE for f in folders if (f / CONDITIONS_FILE).exists()), None)
+    experiment = Experiment(trials, source=", ".join(map(str, files)))
+    if cond_path is not None:
+        _apply_conditions(experiment, cond_path)
+    return experiment
+
+
+def _apply_conditions(experiment: Experiment, path: Path) -> None:
+    table = tomllib.loads(path.read_text()).get("conditions")
+    if table is None:
+        raise ValueError(f"{path} has no [conditions] table")
+    options = {}
+    for key in ("stiffness", "damping", "l_desired", "tendon", "pelvis"):
+        if key in table:
+            options[key] = table[key]
+    if "feedforward_file" in table:
+        ff_path = path.parent / table["feedforward_file"]
+        options["feedforward"] = np.loadtxt(ff_path, delimiter=",", skiprows=1, usecols=1)
+    experiment.options = options
+    experiment.noise_rad = float(np.radians(table.get("noise_deg", np.degrees(experiment.noise_rad))))
+    experiment.period = float(table.get("period_s", experiment.period))
+    experiment.fade = float(table.get("fade_s", experiment.fade))
+    experiment.coactivation_min_activation = table.get("coactivation_min_activation")
+    experiment.source += f" (conditions: {path})"
