@@ -8,7 +8,7 @@ feed-forward co-activation, intervertebral bushings and the pelvis perturbation.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.systems.framework import Diagram, DiagramBuilder
@@ -21,9 +21,12 @@ from trunk_drake.systems.delay import TransportDelay
 from trunk_drake.systems.muscles import MuscleSystem, muscle_parameters
 from trunk_drake.systems.paths import MusclePathSystem
 from trunk_drake.systems.perturbation import PelvisForcePerturbation, PrescribedPelvisMotion
-from trunk_drake.systems.reflex import StretchReflex, gains_by_group
+from trunk_drake.systems.effects import GolgiTendonFeedback, SeatCompliance, TrunkInSpaceFeedback
+from trunk_drake.systems.reflex import ExcitationMixer, StretchReflex, gains_by_group
 
-PELVIS_MODES = ("prescribed", "force", "none")
+PELVIS_MODES = ("prescribed", "force", "seat", "none")  # seat: pelvis on a spring-damper to the platform
+EXTENSOR_GROUPS = ("sacrospinalis", "transversospinalis", "quadratus_lumborum")
+FLEXOR_GROUPS = ("rectus_abdominis", "external_oblique", "internal_oblique", "psoas_major")
 THESIS_PELVIS_MASS = 10_000.0  # kg, seed section 3.4.2
 
 
@@ -42,6 +45,12 @@ class TrunkOptions:
     cubic: float = 0.0  # nonlinear bushing: M = -k (dq + cubic dq^3)
     pelvis: str = "prescribed"
     pelvis_mass: float = THESIS_PELVIS_MASS  # only for pelvis="force"
+    seat_stiffness: float = 0.0  # N/m, pelvis="seat": pelvis-seat spring
+    seat_damping: float = 0.0  # N s/m
+    gto_gain: float = 0.0  # Golgi tendon organ force feedback (shares reflex_delay)
+    vestibular_gain: float = 0.0  # trunk-in-space feedback, excitation per rad of trunk inclination
+    vestibular_delay: float = 0.0  # s
+    activation_scale: float = 1.0  # multiplies both activation time constants (slower excitation-activation)
     strength_scale: float = 1.0
     muscle_mask: np.ndarray | None = None  # 0/1 per muscle: which muscles act (Table 4.1 study)
     constants: ThelenConstants = field(default_factory=ThelenConstants)
@@ -107,9 +116,13 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
     `evaluate(t) -> (x, v, a)` (e.g. `trunk_drake.signals.make_multisine(...)`), or None.
     Loggers record every integrator step (``log_period=0``) or at a fixed period."""
     opts = options or TrunkOptions()
-    pelvis_mode = opts.pelvis if perturbation is not None else ("none" if opts.pelvis == "prescribed" else opts.pelvis)
+    if opts.pelvis not in PELVIS_MODES:
+        raise ValueError(f"pelvis={opts.pelvis!r}; expected one of {PELVIS_MODES}")
+    pelvis_mode = opts.pelvis if perturbation is not None or opts.pelvis == "seat" else "none"
     if opts.pelvis == "force" and model.dofs == "sagittal":
         base = model.variant(pelvis_free=True, pelvis_mass=opts.pelvis_mass)
+    elif opts.pelvis == "seat" and model.dofs == "sagittal":
+        base = model.variant(pelvis_free=True)
     else:
         base = plant_model_for(model, "prescribed")
     plant = base.plant
@@ -120,17 +133,38 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
     builder.AddSystem(plant)
     paths = builder.AddNamedSystem("muscle_paths", MusclePathSystem(base))
     params = muscle_parameters(base, opts.strength_scale)
-    muscles = builder.AddNamedSystem("muscles", MuscleSystem(base, opts.constants, opts.tendon, params, mask=opts.muscle_mask))
+    constants = opts.constants
+    if opts.activation_scale != 1.0:
+        if not opts.activation_scale > 0:
+            raise ValueError(f"activation_scale must be > 0, got {opts.activation_scale}")
+        constants = replace(constants, activation_time_constant=constants.activation_time_constant * opts.activation_scale,
+                            deactivation_time_constant=constants.deactivation_time_constant * opts.activation_scale)
+    muscles = builder.AddNamedSystem("muscles", MuscleSystem(base, constants, opts.tendon, params, mask=opts.muscle_mask))
     reflex = builder.AddNamedSystem(
-        "stretch_reflex",
-        StretchReflex(n, opts.per_muscle(base, opts.kp), opts.per_muscle(base, opts.kv), _desired_length(base, opts, params),
-                      opts.constants.minimum_activation),
+        "stretch_reflex", StretchReflex(n, opts.per_muscle(base, opts.kp), opts.per_muscle(base, opts.kv), _desired_length(base, opts, params))
     )
     feedforward = opts.feedforward if opts.feedforward is not None else np.full(n, opts.constants.minimum_activation)
     feedforward = np.asarray(feedforward, dtype=float)
     if feedforward.shape != (n,):
         raise ValueError(f"feedforward excitation must have {n} entries (one per muscle), got shape {feedforward.shape}")
     ff = builder.AddNamedSystem("feedforward", ConstantVectorSource(feedforward))
+    feedback = [reflex.GetOutputPort("feedback")]
+    if opts.gto_gain:
+        gto = builder.AddNamedSystem("golgi_tendon_feedback", GolgiTendonFeedback(
+            opts.gto_gain, params.max_isometric_force, _operating_force(base, feedforward, params, constants)))
+        _connect_delayed(builder, muscles.GetOutputPort("tendon_force"), gto.get_input_port(0), opts.reflex_delay, "gto", n)
+        feedback.append(gto.get_output_port(0))
+    if opts.vestibular_gain:
+        vest = builder.AddNamedSystem("trunk_in_space_feedback", TrunkInSpaceFeedback(
+            opts.vestibular_gain, _group_mask(base, EXTENSOR_GROUPS), _group_mask(base, FLEXOR_GROUPS), fe, nq + nv))
+        builder.Connect(plant.get_state_output_port(), vest.get_input_port(0))
+        port = vest.get_output_port(0)
+        if opts.vestibular_delay > 0:
+            delay = builder.AddNamedSystem("delay_vestibular", TransportDelay(n, opts.vestibular_delay))
+            builder.Connect(port, delay.get_input_port(0))
+            port = delay.get_output_port(0)
+        feedback.append(port)
+    mixer = builder.AddNamedSystem("excitation", ExcitationMixer(n, len(feedback), opts.constants.minimum_activation))
     bushings = builder.AddNamedSystem(
         "bushings", IntervertebralBushings(nq, nv, fe, opts.stiffness, opts.damping, cubic=opts.cubic)
     )
@@ -138,15 +172,12 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
     builder.Connect(plant.get_state_output_port(), paths.get_input_port(0))
     builder.Connect(plant.get_state_output_port(), bushings.get_input_port(0))
     builder.Connect(paths.GetOutputPort("path_state"), muscles.GetInputPort("path_state"))
-    builder.Connect(ff.get_output_port(), reflex.GetInputPort("feedforward"))
     for name in ("normalized_fiber_length", "normalized_fiber_velocity"):
-        source = muscles.GetOutputPort(name)
-        if opts.reflex_delay > 0:
-            delay = builder.AddNamedSystem(f"delay_{name}", TransportDelay(n, opts.reflex_delay))
-            builder.Connect(source, delay.get_input_port(0))
-            source = delay.get_output_port(0)
-        builder.Connect(source, reflex.GetInputPort(name))
-    builder.Connect(reflex.GetOutputPort("excitation"), muscles.GetInputPort("excitation"))
+        _connect_delayed(builder, muscles.GetOutputPort(name), reflex.GetInputPort(name), opts.reflex_delay, name, n)
+    builder.Connect(ff.get_output_port(), mixer.GetInputPort("feedforward"))
+    for k, port in enumerate(feedback):
+        builder.Connect(port, mixer.GetInputPort(f"feedback_{k}"))
+    builder.Connect(mixer.GetOutputPort("excitation"), muscles.GetInputPort("excitation"))
 
     forces = [muscles.GetOutputPort("generalized_force"), bushings.GetOutputPort("generalized_force")]
     pert = None
@@ -161,6 +192,11 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
         pert = builder.AddNamedSystem(
             "perturbation", PelvisForcePerturbation(nv, base.coordinates.index("pelvis_tx"), perturbation, opts.pelvis_mass)
         )
+        forces.append(pert.GetOutputPort("generalized_force"))
+    elif pelvis_mode == "seat":
+        pert = builder.AddNamedSystem("perturbation", SeatCompliance(
+            perturbation, opts.seat_stiffness, opts.seat_damping, base.coordinates.index("pelvis_tx"), nq, nv))
+        builder.Connect(plant.get_state_output_port(), pert.GetInputPort("plant_state"))
         forces.append(pert.GetOutputPort("generalized_force"))
     adder = builder.AddNamedSystem("generalized_force_sum", Adder(len(forces), nv))
     for i, port in enumerate(forces):
@@ -177,10 +213,33 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
     log("state", plant.get_state_output_port())
     for name in ("activation", "tendon_force", "normalized_fiber_length", "normalized_fiber_velocity", "fiber_length"):
         log(name, muscles.GetOutputPort(name))
-    log("excitation", reflex.GetOutputPort("excitation"))
+    log("excitation", mixer.GetOutputPort("excitation"))
     diagram = builder.Build()
     diagram.set_name("trunk")
     return TrunkDiagram(diagram, base, opts, plant, paths, muscles, reflex, bushings, pert, loggers, fe, feedforward)
+
+
+def _connect_delayed(builder, source, destination, delay: float, name: str, size: int) -> None:
+    """Connect `source` to `destination`, through a TransportDelay when `delay` > 0."""
+    if delay > 0:
+        block = builder.AddNamedSystem(f"delay_{name}", TransportDelay(size, delay))
+        builder.Connect(source, block.get_input_port(0))
+        source = block.get_output_port(0)
+    builder.Connect(source, destination)
+
+
+def _group_mask(model, groups) -> np.ndarray:
+    members = {m for g in groups if g in model.groups for m in model.groups[g]}
+    return np.array([m in members for m in model.muscles], dtype=float)
+
+
+def _operating_force(model, feedforward, params, constants) -> np.ndarray:
+    """Rigid-tendon forces at the neutral posture with the feed-forward activation."""
+    from trunk_drake.muscle import thelen
+
+    zeros = np.zeros(len(model.coordinates))
+    path = model.path_state(zeros, zeros)
+    return thelen.rigid_tendon(feedforward, path.lengths, path.velocities, params, constants).tendon_force
 
 
 def _anterior_direction(model) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""StretchReflex: the thesis' Muscle Fiber Stretch Controller (seed eq. 3.2) plus feed-forward."""
+"""Excitation: feed-forward plus feedback channels, and the thesis' stretch reflex (seed eq. 3.2)."""
 
 from __future__ import annotations
 
@@ -22,28 +22,44 @@ def gains_by_group(model, values: dict[str, float], default: float = 0.0) -> np.
 
 
 class StretchReflex(LeafSystem):
-    """Excitation u = clip(u_ff + kp (l_n - l_d)+ + kv (dl_n)+, u_min, 1).
+    """The Muscle Fiber Stretch Controller: feedback = kp (l_n - l_d)+ + kv (dl_n)+.
 
-    Inputs: ``feedforward`` (n), ``normalized_fiber_length`` (n, l / l_opt),
-    ``normalized_fiber_velocity`` (n, v / (v_max l_opt)). Output: ``excitation`` (n).
-    ``kp``, ``kv``, ``l_desired`` are per-muscle arrays (or scalars). Feedback is stateless;
-    a transport delay is added by the diagram builder around the feedback inputs.
+    Inputs ``normalized_fiber_length`` (l / l_opt) and ``normalized_fiber_velocity``
+    (v / (v_max l_opt)); output ``feedback`` (n). ``kp``, ``kv``, ``l_desired`` are per-muscle
+    arrays (or scalars). A transport delay is added by the diagram builder on the inputs.
     """
 
-    def __init__(self, n: int, kp, kv, l_desired=1.0, min_excitation: float = 0.01):
+    def __init__(self, n: int, kp, kv, l_desired=1.0):
         super().__init__()
         self.kp = np.broadcast_to(np.asarray(kp, float), (n,)).copy()
         self.kv = np.broadcast_to(np.asarray(kv, float), (n,)).copy()
         self.l_desired = np.broadcast_to(np.asarray(l_desired, float), (n,)).copy()
-        self.min_excitation = float(min_excitation)
-        self._ff = self.DeclareVectorInputPort("feedforward", n)
         self._ln = self.DeclareVectorInputPort("normalized_fiber_length", n)
         self._vn = self.DeclareVectorInputPort("normalized_fiber_velocity", n)
-        self.DeclareVectorOutputPort("excitation", n, self._calc)
+        self.DeclareVectorOutputPort("feedback", n, self._calc)
 
-    def excitation(self, feedforward, norm_length, norm_velocity) -> np.ndarray:
-        feedback = self.kp * np.maximum(norm_length - self.l_desired, 0.0) + self.kv * np.maximum(norm_velocity, 0.0)
-        return np.clip(feedforward + feedback, self.min_excitation, 1.0)
+    def feedback(self, norm_length, norm_velocity) -> np.ndarray:
+        return self.kp * np.maximum(norm_length - self.l_desired, 0.0) + self.kv * np.maximum(norm_velocity, 0.0)
 
     def _calc(self, context, output):
-        output.SetFromVector(self.excitation(self._ff.Eval(context), self._ln.Eval(context), self._vn.Eval(context)))
+        output.SetFromVector(self.feedback(self._ln.Eval(context), self._vn.Eval(context)))
+
+
+class ExcitationMixer(LeafSystem):
+    """Excitation u = clip(feed-forward + sum of feedback channels, u_min, 1).
+
+    Inputs ``feedforward`` and ``feedback_0`` ... ``feedback_{k-1}`` (n each); output ``excitation``.
+    """
+
+    def __init__(self, n: int, n_feedback: int, min_excitation: float = 0.01):
+        super().__init__()
+        self.min_excitation = float(min_excitation)
+        self._ff = self.DeclareVectorInputPort("feedforward", n)
+        self._fb = [self.DeclareVectorInputPort(f"feedback_{k}", n) for k in range(n_feedback)]
+        self.DeclareVectorOutputPort("excitation", n, self._calc)
+
+    def _calc(self, context, output):
+        u = self._ff.Eval(context).copy()
+        for port in self._fb:
+            u += port.Eval(context)
+        output.SetFromVector(np.clip(u, self.min_excitation, 1.0))
