@@ -16,6 +16,7 @@ COMMAND_MODULES = (
     "trunk_drake.simulation",
     "trunk_drake.optim.fit",
     "trunk_drake.optim.strength",
+    "trunk_drake.reproduce",
 )
 
 
