@@ -111,6 +111,10 @@ def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, tria
     z = {key: {g: (car.gains[key][g] - truth[key][g]) / car.std[key][g] if np.isfinite(car.std[key][g]) else float("nan")
                for g in car.gains[key]} for key in ("kp", "kv")}
     finite_z = [abs(v) for d in z.values() for v in d.values() if np.isfinite(v)]
+    determined = {f"{k}.{g}": (car.gains[k][g] - truth[k][g]) / truth[k][g] for k in ("kp", "kv") for g in car.gains[k]
+                  if car.std[k][g] < 0.5 * car.gains[k][g]}
+    unidentified = [f"{k}.{g}" for k in ("kp", "kv") for g in car.gains[k] if not np.isfinite(car.std[k][g])]
+    largest = max(((settling.gains[k][g], f"{g} {k}") for k in ("kp", "kv") for g in settling.gains[k]))
     within = sum(v <= 2.0 for v in finite_z)
     floor = 0.5 * sum(t.time.size * len(t.outputs) for t in targets)
     absent = sorted(set(tables["4_3"]) - set(car.gains["kp"]))
@@ -132,9 +136,12 @@ def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, tria
     settling_rms = float(np.degrees(target.noise["lumbar_rotation"] * np.sqrt(2 * settling.cost / target.time.size)))
     settling_values = [*settling.gains["kp"].values(), *settling.gains["kv"].values()]
     ours = (f"Settling: {settling.n_simulations} simulations in {settling.wall_time_s:.0f} s; residual lumbar rotation "
-            f"{settling_rms:.2f} deg rms about its mean. Car passenger (synthetic data): {car.n_simulations} simulations in "
-            f"{car.wall_time_s / 60:.1f} min; {within} of {len(finite_z)} identifiable gains within 2 SD of the truth "
-            f"(largest error {max(finite_z, default=float('nan')):.1f} SD); cost {car.cost:.0f} vs noise floor {floor:.0f}.")
+            f"{settling_rms:.2f} deg rms about its mean, largest gain {largest[1]} {largest[0]:.3g}, the others near the 0.001 "
+            f"bound. Car passenger (synthetic data): {car.n_simulations} simulations in {car.wall_time_s / 60:.1f} min; cost "
+            f"{car.cost:.0f} vs noise floor {floor:.0f}; {within} of {len(finite_z)} identifiable gains within 2 SD of the truth "
+            f"(largest error {max(finite_z, default=float('nan')):.1f} SD); well determined (SD < 50 % of the value): "
+            + (", ".join(f"{n} ({100 * e:+.0f} % from the truth)" for n, e in determined.items()) or "none")
+            + f"; not identifiable: {', '.join(unidentified) or 'none'}.")
     return rp.section(
         f"{THESIS['settling']} {THESIS['car']}", ours,
         comparison=[
@@ -169,7 +176,9 @@ def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, tria
                f"{0.5 * target.time.size:.0f}), so standard deviations carry no information there and are not shown.",
                *([f"Settling co-activation: {warning}."] if warning else [])],
         numbers={"settling": _fit_summary(settling), "car": {**_fit_summary(car), "truth": truth, "error_sd": z,
-                                                              "noise_floor_cost": floor, "trials": list(trials)},
+                                                              "noise_floor_cost": floor, "trials": list(trials),
+                                                              "well_determined_relative_error": determined,
+                                                              "not_identifiable": unidentified},
                  "thesis_table_4_2": tables["4_2"], "thesis_table_4_3": tables["4_3"],
                  "files": {"car_arrays": arrays, **{f"car_{k}": v for k, v in car_files.items()},
                            **{f"settling_{k}": v for k, v in settling_files.items()}}},

@@ -4,6 +4,8 @@ strength with the pelvis locked, against in vivo values.
 Solved directly as a linear program and by the thesis' 10 N static-optimisation sweep
 (trunk_drake.optim.strength), on the 3-D spine (pelvis welded)."""
 
+from collections import Counter
+
 from trunk_drake import reproduce as rp
 from trunk_drake.optim.strength import DIRECTIONS, isometric_strength, strength_report
 
@@ -67,6 +69,9 @@ def run(out_dir, model=None, workers=2, inputs=None, sweep=True):
         rows.append([d, f"{s['max_force_N']:.1f}", sweep_cell, s["limiting_coordinate"], f"{top[1]:+.2f}",
                      len(s["muscles_at_upper_bound"]), ", ".join(s["muscles_at_upper_bound"][:6])
                      + (" ..." if len(s["muscles_at_upper_bound"]) > 6 else "")])
+    group_of = {m: g for g, members in spine.groups.items() for m in members}
+    saturated = {d: Counter(group_of[m] for m in s["muscles_at_upper_bound"]).most_common(3) for d, s in summaries.items()}
+    sides = {d: [sum(m.endswith(end) for m in s["muscles_at_upper_bound"]) for end in ("_l", "_r")] for d, s in summaries.items()}
     forces = {d: s["max_force_N"] for d, s in summaries.items()}
     order = sorted(forces, key=forces.get, reverse=True)
     ours = (f"Extension {forces['extension']:.0f} N, flexion {forces['flexion']:.0f} N, lateral bending {forces['lateral']:.0f} N "
@@ -81,6 +86,10 @@ def run(out_dir, model=None, workers=2, inputs=None, sweep=True):
                     ["flexion", "900 N (T6/T7 load); in vivo the weakest",
                      f"{forces['flexion']:.0f} N; in vivo comparators: {in_vivo('flexion')}"],
                     ["lateral bending", "lowest model prediction", f"{forces['lateral']:.0f} N; in vivo comparators: {in_vivo('lateral')}"],
+                    ["muscles at the upper bound (fig. 4.1, appendix A.2)", "flexion: abdominals; extension: sacrospinalis "
+                     "and transversospinalis; lateral: left-side muscles",
+                     "; ".join(f"{d}: " + ", ".join(f"{g} {n}" for g, n in top) + f" (left {sides[d][0]}, right {sides[d][1]})"
+                               for d, top in saturated.items())],
                     ["thesis' in vivo sources", "Paalanne et al. 2009, Thomas et al.",
                      "their numbers could not be read (models/reference_values.toml): Kocjan & Sarabon 2014 and Sinaki 1996 "
                      "are shown as order-of-magnitude comparators (other populations)"]],
@@ -93,7 +102,7 @@ def run(out_dir, model=None, workers=2, inputs=None, sweep=True):
                "L4/L5 (the thesis' model: 9.1 cm anterior); the thesis raised 54 muscles' maximal forces (appendix A.1), we "
                "keep MyoTorso's. Every lumbar level must balance the load on its own (static optimisation of all "
                "lumbar coordinates); the weakest level limits the whole trunk."],
-        numbers={"max_force_N": forces, "report": report},
+        numbers={"max_force_N": forces, "saturated_by_group": saturated, "report": report},
         settings={"model": "spine3d (15 lumbar DOF), pelvis welded", "static optimisation": "sum of squared activations, "
                   "min activation 0.01", "load": "T6/T7 landmarks (sagittal), left shoulder site (lateral)"},
     )

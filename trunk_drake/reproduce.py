@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import json
+import os
 import re
 import sys
 import time
@@ -325,6 +326,15 @@ def _relative(path: str, out: Path) -> str:
         return str(path)
 
 
+def _load_note(run: dict) -> str:
+    loads = [run.get("load_average_at_start"), run.get("load_average_at_end")]
+    if None in loads:
+        return ""
+    busy = max(loads) > run["workers"] + 0.5
+    return (f"1-minute load average at its start and end: {loads[0]:.1f} and {loads[1]:.1f} on {os.cpu_count()} cores"
+            + (" (above the worker count: other processes competed for the CPU and inflated the wall times)." if busy else "."))
+
+
 def write_report(out_dir, report: dict) -> Path:
     """report.md from the report dict of run_experiments (sections in registry order)."""
     out = Path(out_dir)
@@ -345,7 +355,8 @@ def write_report(out_dir, report: dict) -> Path:
     lines += ["", f"Sum over experiments: **{sum(entries[e.name].get('elapsed_s', 0.0) for e in done) / 60:.1f} min**; "
               f"last `trunk-drake reproduce` invocation: {report['run']['wall_time_s'] / 60:.1f} min on "
               f"{report['run']['workers']} worker processes (experiments skipped in it because already done: "
-              f"{', '.join(report['run']['skipped']) or 'none'}).", "", "## Contents", ""]
+              f"{', '.join(report['run']['skipped']) or 'none'}). {_load_note(report['run'])}", "",
+              "## Contents", ""]
     lines += [f"{i}. [{e.title}](#{e.name})" for i, e in enumerate(done, 1)]
     for i, e in enumerate(done, 1):
         entry = entries[e.name]
@@ -413,7 +424,8 @@ def run_experiments(out_dir, names=None, force: bool = False, workers: int = 2, 
     report["metadata"] = run_metadata(model)
     report["synthetic_data"] = SYNTHETIC_NOTE
     selected = _with_requirements(names or [e.name for e in EXPERIMENTS])
-    report["run"] = {"workers": workers, "selected": selected, "skipped": [], "wall_time_s": 0.0}
+    report["run"] = {"workers": workers, "selected": selected, "skipped": [], "wall_time_s": 0.0,
+                     "load_average_at_start": os.getloadavg()[0]}
     recomputed: set[str] = set()
     for k, name in enumerate(selected, 1):
         exp = experiment(name)
@@ -439,6 +451,7 @@ def run_experiments(out_dir, names=None, force: bool = False, workers: int = 2, 
         write_report(out, report)
         log(f"[{k}/{len(selected)}] {name}: {entry['status']} in {entry['elapsed_s']:.1f} s")
     report["run"]["wall_time_s"] = time.perf_counter() - wall
+    report["run"]["load_average_at_end"] = os.getloadavg()[0]
     path.write_text(json.dumps(report, indent=2))
     write_report(out, report)
     log(f"report: {out / REPORT_MD} ({report['run']['wall_time_s'] / 60:.1f} min)")
