@@ -11,6 +11,7 @@ parameters travel), plotting and reference-value helpers, and the Markdown/JSON 
 from __future__ import annotations
 
 import argparse
+import datetime
 import importlib.util
 import json
 import os
@@ -326,15 +327,6 @@ def _relative(path: str, out: Path) -> str:
         return str(path)
 
 
-def _load_note(run: dict) -> str:
-    loads = [run.get("load_average_at_start"), run.get("load_average_at_end")]
-    if None in loads:
-        return ""
-    busy = max(loads) > run["workers"] + 0.5
-    return (f"1-minute load average at its start and end: {loads[0]:.1f} and {loads[1]:.1f} on {os.cpu_count()} cores"
-            + (" (above the worker count: other processes competed for the CPU and inflated the wall times)." if busy else "."))
-
-
 def write_report(out_dir, report: dict) -> Path:
     """report.md from the report dict of run_experiments (sections in registry order)."""
     out = Path(out_dir)
@@ -352,11 +344,16 @@ def write_report(out_dir, report: dict) -> Path:
              "tuned towards the thesis.", "", "## Wall time", ""]
     rows = [[e.title, f"{entries[e.name].get('elapsed_s', float('nan')):.1f}", entries[e.name].get("status", "?")] for e in done]
     lines += _markdown_table(["experiment", "wall time (s)", "status"], rows)
-    lines += ["", f"Sum over experiments: **{sum(entries[e.name].get('elapsed_s', 0.0) for e in done) / 60:.1f} min**; "
-              f"last `trunk-drake reproduce` invocation: {report['run']['wall_time_s'] / 60:.1f} min on "
-              f"{report['run']['workers']} worker processes (experiments skipped in it because already done: "
-              f"{', '.join(report['run']['skipped']) or 'none'}). {_load_note(report['run'])}", "",
-              "## Contents", ""]
+    lines += ["", f"Sum over experiments (the cost of a full reproduction): "
+              f"**{sum(entries[e.name].get('elapsed_s', 0.0) for e in done) / 60:.1f} min**.", "",
+              "Invocations of `trunk-drake reproduce` into this folder (1-minute load average at start and end on "
+              f"{os.cpu_count()} cores; above the worker count, other processes competed for the CPU and inflated the times):", ""]
+    runs = [[r.get("started", "?"), f"{r['wall_time_s'] / 60:.1f}", r["workers"],
+             ", ".join(n for n in r["selected"] if n not in r["skipped"]) or "none", ", ".join(r["skipped"]) or "none",
+             " / ".join("-" if r.get(k) is None else f"{r[k]:.1f}" for k in ("load_average_at_start", "load_average_at_end"))]
+            for r in report.get("runs", [report["run"]])]
+    lines += _markdown_table(["started (UTC)", "wall time (min)", "workers", "computed", "skipped", "load average"], runs)
+    lines += ["", "## Contents", ""]
     lines += [f"{i}. [{e.title}](#{e.name})" for i, e in enumerate(done, 1)]
     for i, e in enumerate(done, 1):
         entry = entries[e.name]
@@ -424,8 +421,9 @@ def run_experiments(out_dir, names=None, force: bool = False, workers: int = 2, 
     report["metadata"] = run_metadata(model)
     report["synthetic_data"] = SYNTHETIC_NOTE
     selected = _with_requirements(names or [e.name for e in EXPERIMENTS])
-    report["run"] = {"workers": workers, "selected": selected, "skipped": [], "wall_time_s": 0.0,
-                     "load_average_at_start": os.getloadavg()[0]}
+    report["run"] = {"started": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"), "workers": workers,
+                     "selected": selected, "skipped": [], "wall_time_s": 0.0, "load_average_at_start": os.getloadavg()[0]}
+    report["runs"] = [*report.get("runs", []), report["run"]]
     recomputed: set[str] = set()
     for k, name in enumerate(selected, 1):
         exp = experiment(name)
