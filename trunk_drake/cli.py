@@ -15,6 +15,7 @@ COMMAND_MODULES = (
     "trunk_drake.model.info",
     "trunk_drake.simulation",
     "trunk_drake.optim.fit",
+    "trunk_drake.gap.commands",
     "trunk_drake.optim.strength",
     "trunk_drake.reproduce",
 )

@@ -20,7 +20,7 @@ class Experiment:
 
     trials: list[Trial]
     options: dict = field(default_factory=dict)
-    noise_rad: float = float(np.radians(0.1))
+    noise_rad: float | None = None  # angle measurement noise from the conditions, if given
     period: float = 20.0
     fade: float = 2.0
     coactivation_min_activation: float | None = None
@@ -62,7 +62,8 @@ def _apply_conditions(experiment: Experiment, path: Path) -> None:
         ff_path = path.parent / table["feedforward_file"]
         options["feedforward"] = np.loadtxt(ff_path, delimiter=",", skiprows=1, usecols=1)
     experiment.options = options
-    experiment.noise_rad = float(np.radians(table.get("noise_deg", np.degrees(experiment.noise_rad))))
+    if "noise_deg" in table:
+        experiment.noise_rad = float(np.radians(table["noise_deg"]))
     experiment.period = float(table.get("period_s", experiment.period))
     experiment.fade = float(table.get("fade_s", experiment.fade))
     experiment.coactivation_min_activation = table.get("coactivation_min_activation")

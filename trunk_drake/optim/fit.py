@@ -486,7 +486,8 @@ def _cmd_fit(args) -> int:
         if not args.data:
             raise ValueError("the car scenario needs measured trials: trunk-drake fit DATA... --out DIR")
         experiment = load_experiment(args.data, args.conditions)
-        targets = targets_from_trials(experiment.trials, names, experiment.noise_rad, period=experiment.period,
+        noise = experiment.noise_rad if experiment.noise_rad is not None else np.radians(0.1)
+        targets = targets_from_trials(experiment.trials, names, noise, period=experiment.period,
                                       steady_start=experiment.fade)
         opts = dict(experiment.options)
         if "feedforward" not in opts:

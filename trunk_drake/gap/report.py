@@ -1,0 +1,137 @@
+"""Write a gap diagnosis: diagnosis.json, report.md and figures (where, ranking, before/after)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def _json_default(obj):
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, (np.floating, np.integer, np.bool_)):
+        return obj.item()
+    return str(obj)
+
+
+def write_diagnosis(diagnosis, out_dir) -> dict[str, Path]:
+    """All files of one diagnosis; returns their paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files = {"json": out / "diagnosis.json", "report": out / "report.md"}
+    files["json"].write_text(json.dumps(diagnosis.to_dict(), indent=2, default=_json_default))
+    files["frf_plot"] = _plot_where(diagnosis, out / "where_frf.png")
+    files["ranking_plot"] = _plot_ranking(diagnosis, out / "ranking.png")
+    if diagnosis.series:
+        files["shrink_plot"] = _plot_shrink(diagnosis, out / "before_after.png")
+    files["report"].write_text(markdown(diagnosis, {k: v.name for k, v in files.items()}))
+    return files
+
+
+def markdown(d, names: dict) -> str:
+    """The report: verdict, where, which (ranking), how far (shrinkage)."""
+    s = d.shrink
+    lines = ["# Sim-to-real gap diagnosis", "", f"**Verdict: {d.verdict}.**", "",
+             f"Measurement noise {np.degrees(d.noise_rad):.3f} deg; held-out data: {d.options['held_out']}; "
+             f"{d.options['scores']['simulations']} simulations in {d.wall_time_s:.0f} s.", "",
+             "## 1. Where the gap lies", "", "| output | VAF (nominal) | chi2 per sample | RMS residual (deg) |", "|---|---|---|---|"]
+    for out, row in d.where["per_output"].items():
+        lines.append(f"| {out} | {100 * row['vaf']:.2f} % | {row['chi2_per_sample']:.2f} | {row['rms_residual_deg']:.3f} |")
+    lines += ["", "chi2 per sample near 1 means the model is within measurement noise.", ""]
+    for trial, f in d.where["per_frequency"].items():
+        sig = np.asarray(f["significant"])
+        freqs = np.asarray(f["frequencies_hz"])
+        listed = ", ".join(f"{x:.2f}" for x in freqs[sig]) or "none"
+        ratio = f["nonexcited_ratio_data"], f["nonexcited_ratio_model"]
+        lines.append(f"- `{Path(trial).name}`: significant FRF errors (beyond 2 SD of the data) at {listed} Hz; "
+                     f"power at non-excited lines / excited, data {ratio[0]:.2g} vs model {ratio[1]:.2g}"
+                     if ratio[0] is not None and ratio[1] is not None else f"- `{Path(trial).name}`: significant FRF errors at {listed} Hz")
+    lines += ["", f"![FRF errors]({names['frf_plot']})", "", "## 2. Which unmodelled effect", "",
+              "Each candidate is refitted with the nominal reflex gains and scored on held-out data: "
+              "dBIC = chi2(gains-only refit) - chi2(candidate) - k ln N (positive favours the candidate; "
+              f"claimed above {d.options['threshold']:g}).", "",
+              "| rank | effect | dBIC (nonlinear) | dBIC (linear screening) | fitted parameters |", "|---|---|---|---|---|"]
+    for k, r in enumerate(d.ranking, 1):
+        values = r.get("values") or r.get("linear_values") or {}
+        text = ", ".join(f"{n} = {v:.4g}" for n, v in values.items())
+        dbic = f"{r['delta_bic']:.1f}" if "delta_bic" in r else "not refined"
+        lines.append(f"| {k} | {r['effect']} | {dbic} | {r['linear_delta_bic']:.1f} | {text} |")
+    lines += ["", f"![ranking]({names['ranking_plot']})", "", "## 3. How far the gap shrinks (held-out data)", ""]
+    if s:
+        gap = s["gap"]
+        lines += ["| model | 1 - VAF (lumbar rotation) | mean abs log FRF error |", "|---|---|---|"]
+        for k in gap:
+            lines.append(f"| {k} | {gap[k]:.5f} | {s['frf_error'].get(k, float('nan')):.4f} |")
+        lines += ["", f"Noise floor of 1 - VAF: {s['noise_floor_gap']:.5f}. Gap reduction from the nominal model: "
+                  f"{100 * s['reduction']:.1f} % of 1 - VAF (95 % CI {100 * s['reduction_ci95'][0]:.1f} to "
+                  f"{100 * s['reduction_ci95'][1]:.1f} %), {100 * s['reduction_above_noise']:.1f} % of the part above the noise floor.", ""]
+        if "shrink_plot" in names:
+            lines += [f"![before and after]({names['shrink_plot']})", ""]
+    if d.final.get("effects"):
+        lines += ["Selected model (fitted on the training halves):", "",
+                  *(f"- {n}: " + ", ".join(f"{k} = {v:.4g}" for k, v in vals.items()) for n, vals in d.final["effects"].items()), ""]
+    return "\n".join(lines) + "\n"
+
+
+def _plot_where(d, path) -> Path:
+    fig, (ax_g, ax_p) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    for k, (trial, f) in enumerate(d.where["per_frequency"].items()):
+        freq = np.asarray(f["frequencies_hz"])
+        sig = np.asarray(f["significant"])
+        color = f"C{k}"
+        ax_g.semilogx(freq, f["gain_error_percent"], "-o", color=color, ms=3, label=Path(trial).name)
+        ax_g.fill_between(freq, -2 * np.asarray(f["sigma_percent"]), 2 * np.asarray(f["sigma_percent"]), color=color, alpha=0.12)
+        ax_g.plot(freq[sig], np.asarray(f["gain_error_percent"])[sig], "o", color=color, ms=7, mfc="none")
+        ax_p.semilogx(freq, f["phase_error_deg"], "-o", color=color, ms=3)
+    ax_g.axhline(0, color="0.5", lw=0.8)
+    ax_p.axhline(0, color="0.5", lw=0.8)
+    ax_g.set_ylabel("gain error model/data (%)")
+    ax_p.set_ylabel("phase error (deg)")
+    ax_p.set_xlabel("frequency (Hz)")
+    ax_g.legend(fontsize=7)
+    ax_g.set_title("nominal model vs data: FRF errors (bands: 2 SD of the data; circles: significant)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def _plot_ranking(d, path) -> Path:
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    names = [r["effect"] for r in d.ranking]
+    values = [r.get("delta_bic", r["linear_delta_bic"]) for r in d.ranking]
+    colors = ["C3" if n in d.selected else ("C0" if "delta_bic" in r else "0.7") for n, r in zip(names, d.ranking)]
+    ax.barh(names[::-1], np.sign(values[::-1]) * np.log10(1 + np.abs(values[::-1])), color=colors[::-1])
+    ax.axvline(np.log10(1 + d.options["threshold"]), color="k", ls="--", lw=0.8)
+    ax.set_xlabel("sign(dBIC) log10(1 + |dBIC|)  (red: claimed, grey: screening only)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def _plot_shrink(d, path) -> Path:
+    n = len(d.series)
+    fig, axes = plt.subplots(n, 1, figsize=(9, 2.4 * n), squeeze=False)
+    for ax, (trial, s) in zip(axes[:, 0], d.series.items()):
+        t = s["time"]
+        half = t.size // 2
+        ax.plot(t, np.degrees(s["data"]), color="0.6", lw=1, label="data")
+        for key, style in (("nominal", "C0"), ("refit", "C2"), ("effect", "C3")):
+            if s.get(key) is not None:
+                ax.plot(t, np.degrees(s[key] - s[key].mean()), color=style, lw=0.8, label=key)
+        ax.axvspan(t[half], t[-1], color="0.9", zorder=0)
+        ax.set_title(f"{Path(trial).name} (shaded: held out)", fontsize=9)
+        ax.set_ylabel("lumbar rotation (deg)")
+        ax.legend(loc="upper right", fontsize=7, ncol=4)
+    axes[-1, 0].set_xlabel("time (s)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
