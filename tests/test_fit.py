@@ -75,9 +75,10 @@ def test_levenberg_marquardt_on_a_known_problem():
     assert x[0] == pytest.approx(-0.8)
 
 
-def test_unresolved_directions_get_infinite_variance():
+def test_untouched_parameters_get_infinite_variance():
     cov = _inverse_or_inf(np.array([[4.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.0]]))
     assert cov[0, 0] == pytest.approx(0.25) and cov[1, 1] == pytest.approx(1.0) and np.isinf(cov[2, 2])
+    assert np.isfinite(cov[:2, :2]).all()
 
 
 def test_settling_target_and_bad_input(setting):

@@ -85,7 +85,7 @@ def segment_chi2(y, model, noise, part: slice) -> float:
     """Chi-square of one segment, a constant offset per output fitted (removed)."""
     r = y[part] - model[part]
     r = r - r.mean(axis=0)
-    return float(np.sum(r**2) / noise**2)
+    return float(np.sum((r / noise) ** 2))
 
 
 @dataclass
@@ -110,7 +110,7 @@ class GapDiagnosis:
     verdict: str
     shrink: dict  # VAF / FRF error before and after on held-out data
     final: dict  # parameters of the selected model
-    noise_rad: float
+    noise_rad: list  # measurement noise per output (rad)
     wall_time_s: float
     options: dict = field(default_factory=dict)
     series: dict = field(default_factory=dict)  # per trial: time, data, nominal, refit, effect (lumbar rotation)
@@ -157,9 +157,9 @@ def prepare_trials(trials, outputs=OUTPUT_NAMES, period: float = 20.0, fade: flo
     return prepared
 
 
-def estimate_noise(trials: list[TrialData]) -> float:
-    """White measurement noise (rad) from output power far above the excited band, where the
-    trunk's response is negligible (periodogram: E|X_k|^2 = N sigma^2)."""
+def estimate_noise(trials: list[TrialData]) -> np.ndarray:
+    """White measurement noise per output (rad) from output power far above the excited band,
+    where the trunk's response is negligible (periodogram: E|X_k|^2 = N sigma^2)."""
     estimates = []
     for trial in trials:
         n = trial.time.size
@@ -168,11 +168,11 @@ def estimate_noise(trials: list[TrialData]) -> float:
         if high.sum() < 10:
             continue
         spec = np.fft.rfft(trial.y - trial.y.mean(axis=0), axis=0)
-        estimates.append(np.mean(np.abs(spec[high]) ** 2) / n)
+        estimates.append(np.mean(np.abs(spec[high]) ** 2, axis=0) / n)
     if not estimates:
         raise ValueError("cannot estimate the measurement noise (sampling too slow for a noise band above the excitation): "
                          "give noise=... (rad)")
-    return float(np.sqrt(np.median(estimates)))
+    return np.sqrt(np.median(estimates, axis=0))
 
 
 # ------------------------------------------------------------------ nominal simulations
@@ -546,7 +546,7 @@ def locate_gap(trials, nominal, noise, outputs) -> dict:
         data = np.concatenate([t.y[:, j] for t in trials])
         model = np.concatenate([n[:, j] for n in nominal])
         r = data - model
-        per_output[out] = {"vaf": float(vaf(data, model)), "chi2_per_sample": float(np.mean(r**2) / noise**2),
+        per_output[out] = {"vaf": float(vaf(data, model)), "chi2_per_sample": float(np.mean(r**2) / noise[j] ** 2),
                            "rms_residual_deg": float(np.degrees(np.std(r)))}
     per_frequency, per_window = {}, {}
     for trial, nom in zip(trials, nominal):
@@ -568,7 +568,7 @@ def locate_gap(trials, nominal, noise, outputs) -> dict:
         r = trial.y[:, 0] - nom[:, 0]
         chunks = [r[k:k + n_win] for k in range(0, r.size - n_win + 1, n_win)]
         per_window[trial.name] = {"start_s": (trial.time[0] + WINDOW_S * np.arange(len(chunks))).tolist(),
-                                  "chi2_per_sample": [float(np.mean((c - c.mean()) ** 2) / noise**2) for c in chunks]}
+                                  "chi2_per_sample": [float(np.mean((c - c.mean()) ** 2) / noise[0] ** 2) for c in chunks]}
     return {"per_output": per_output, "per_frequency": per_frequency, "per_window": per_window}
 
 
@@ -580,6 +580,7 @@ def _scalar(x):
 # ------------------------------------------------------------------------- shrinkage
 
 def measure_shrinkage(trials, variants: dict, noise: float, seed: int = 0, n_boot: int = 1000) -> dict:
+    """(`noise`: of the total lumbar rotation, rad.)"""
     """1 - VAF of the total lumbar rotation on the held-out halves for each model variant
     (e.g. nominal, refit, effect), pooled over trials, with the reduction of the gap from the
     first to the last variant and a 95 % bootstrap interval over 2 s windows."""
@@ -641,8 +642,8 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
                  fade: float = 2.0, workers: int = 2, progress: bool = False) -> GapDiagnosis:
     """Diagnose the gap between `model` (with `options`, e.g. fitted reflex gains) and `trials`.
 
-    `noise` (rad) is the measurement noise of the angles (estimated from the data's high
-    frequencies when None). `candidates` defaults to the whole catalogue; the best `refine`
+    `noise` (rad, scalar or per output) is the measurement noise of the angles (estimated per
+    output from the data's high frequencies when None). `candidates` defaults to the whole catalogue; the best `refine`
     of the linear screening are refitted with nonlinear simulations. An effect is claimed
     when it lowers the held-out chi-square by more than `threshold` after a k ln N penalty.
     """
@@ -651,9 +652,9 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
     options = options or TrunkOptions()
     candidates = tuple(effect(c) if isinstance(c, str) else c for c in (candidates or CATALOGUE))
     data = prepare_trials(trials, outputs, period, fade)
-    noise = float(noise) if noise is not None else estimate_noise(data)
+    noise = np.broadcast_to(np.asarray(noise, float), (len(outputs),)).copy() if noise is not None else estimate_noise(data)
     if say:
-        say(f"{len(data)} trials, noise {np.degrees(noise):.3f} deg; simulating the nominal model")
+        say(f"{len(data)} trials, noise {np.round(np.degrees(noise), 3).tolist()} deg; simulating the nominal model")
     with Simulator(model, workers) as simulator:
         return _diagnose(model, data, options, noise, outputs, candidates, threshold, max_effects, refine, simulator, say, wall)
 
@@ -679,7 +680,7 @@ def _diagnose(model, data, options, noise, outputs, candidates, threshold, max_e
     variants = {"nominal": nominal, "refit": base.outputs}
     if selected:
         variants["effect"] = best.outputs
-    shrink = measure_shrinkage(data, variants, noise)
+    shrink = measure_shrinkage(data, variants, float(noise[0]))
     shrink["frf_error"] = frf_errors(data, variants)
     rank = space.directions.shape[1]
     final = {"effects": best.values if selected else {},
@@ -687,7 +688,7 @@ def _diagnose(model, data, options, noise, outputs, candidates, threshold, max_e
     series = {t.name: {"time": t.time, "data": t.y[:, 0], **{k: (None if v[i] is None else v[i][:, 0]) for k, v in variants.items()}}
               for i, t in enumerate(data)}
     return GapDiagnosis(where=where, ranking=ranking, selected=selected, verdict=_verdict(scores, ranking, selected, threshold),
-                        shrink=shrink, final=final, noise_rad=noise, wall_time_s=_time.perf_counter() - wall,
+                        shrink=shrink, final=final, noise_rad=noise.tolist(), wall_time_s=_time.perf_counter() - wall,
                         options={"threshold": threshold, "max_effects": max_effects, "refine": refine, "outputs": list(outputs),
                                  "candidates": [c.name for c in candidates], "scores": scores,
                                  "gain_directions": int(rank), "held_out": "second half of every trial's steady window"},

@@ -38,7 +38,7 @@ def markdown(d, names: dict) -> str:
     """The report: verdict, where, which (ranking), how far (shrinkage)."""
     s = d.shrink
     lines = ["# Sim-to-real gap diagnosis", "", f"**Verdict: {d.verdict}.**", "",
-             f"Measurement noise {np.degrees(d.noise_rad):.3f} deg; held-out data: {d.options['held_out']}; "
+             f"Measurement noise {np.round(np.degrees(d.noise_rad), 3).tolist()} deg (per output); held-out data: {d.options['held_out']}; "
              f"{d.options['scores']['simulations']} simulations in {d.wall_time_s:.0f} s.", "",
              "## 1. Where the gap lies", "", "| output | VAF (nominal) | chi2 per sample | RMS residual (deg) |", "|---|---|---|---|"]
     for out, row in d.where["per_output"].items():

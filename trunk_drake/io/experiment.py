@@ -43,7 +43,8 @@ def load_experiment(paths, conditions: str | None = None) -> Experiment:
     if not files:
         raise ValueError(f"no trial files ({', '.join(TRIAL_SUFFIXES)}) in {[str(p) for p in paths]}")
     trials = [load_trial(f) for f in files]
-    cond_path = Path(conditions) if conditions else next((f / CONDITIONS_FILE for f in folders if (f / CONDITIONS_FILE).exists()), None)
+    beside = [*folders, *(f.parent for f in files)]
+    cond_path = Path(conditions) if conditions else next((d / CONDITIONS_FILE for d in beside if (d / CONDITIONS_FILE).exists()), None)
     experiment = Experiment(trials, source=", ".join(map(str, files)))
     if cond_path is not None:
         _apply_conditions(experiment, cond_path)

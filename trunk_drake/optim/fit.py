@@ -322,16 +322,12 @@ def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, fixed_gain
 
 
 def _inverse_or_inf(A: np.ndarray, rcond: float = 1e-12) -> np.ndarray:
-    """Inverse of a symmetric positive semi-definite matrix; directions it cannot resolve get
-    infinite variance (a pseudo-inverse would wrongly report them as exact)."""
-    w, V = np.linalg.eigh(A)
-    with np.errstate(divide="ignore"):
-        inv_w = np.where(w > rcond * max(w.max(), 0.0), 1.0 / w, np.inf)
-    finite = V @ np.diag(np.where(np.isfinite(inv_w), inv_w, 0.0)) @ V.T
-    unresolved = (V[:, ~np.isfinite(inv_w)] ** 2).sum(axis=1) > 1e-12
-    out = finite.copy()
-    out[unresolved, :] = np.inf
-    out[:, unresolved] = np.inf
+    """(Pseudo-)inverse of a symmetric positive semi-definite matrix A = J^T J, with infinite
+    variance for parameters the data do not touch at all (zero row/column of A)."""
+    untouched = np.abs(np.diag(A)) <= rcond * max(np.abs(np.diag(A)).max(), 0.0)
+    out = np.linalg.pinv(A, rcond=rcond, hermitian=True)
+    out[untouched, :] = np.inf
+    out[:, untouched] = np.inf
     return out
 
 
@@ -401,13 +397,20 @@ def goodness_of_fit(objective: Objective, x, targets: list[FitTarget]):
         result = objective.simulate(x, target)
         model_out = objective.outputs(result, target)
         aligned = {n: model_out[n] - (model_out[n] - target.outputs[n]).mean() for n in target.outputs}
-        vafs[target.name] = {n: float(vaf(target.outputs[n] - target.outputs[n].mean(), aligned[n] - target.outputs[n].mean()))
-                             for n in target.outputs}
+        vafs[target.name] = {n: _vaf_or_none(target.outputs[n], aligned[n]) for n in target.outputs}
         name = "lumbar_rotation" if "lumbar_rotation" in target.outputs else next(iter(target.outputs))
         series[target.name] = {"time": target.time, "data": target.outputs[name], "model": aligned[name], "output": name}
         if target.whole_periods >= 1 and name == "lumbar_rotation":
             frfs[target.name] = frf_pair(target, target.outputs[name], aligned[name])
     return vafs, frfs, series
+
+
+def _vaf_or_none(measured, modelled):
+    """VAF about the mean; None for a constant target (e.g. settling: zero rotation)."""
+    centred = measured - measured.mean()
+    if not np.any(centred):
+        return None
+    return float(vaf(centred, modelled - measured.mean()))
 
 
 def frf_pair(target: FitTarget, measured, modelled) -> dict:

@@ -1,0 +1,78 @@
+"""Sim-to-real gap diagnosis: inputs, noise estimate, catalogue, and an end-to-end case."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import trunk_drake as td
+from trunk_drake.gap.benchmark import nominal_options, truth_options, Case
+from trunk_drake.gap.catalogue import CATALOGUE
+from trunk_drake.gap.diagnose import diagnose_gap, estimate_noise, prepare_trials
+from trunk_drake.gap.linear import LinearParams
+from trunk_drake.gap.report import write_diagnosis
+from trunk_drake.gap.synthetic import synthetic_trials
+from trunk_drake.io.trials import Trial
+
+PERIOD = 10.0  # short trials keep the test fast (one whole period after the 2 s fade-in)
+
+
+def changed_fields(a, b) -> set:
+    return {f.name for f in dataclasses.fields(a)
+            if not np.array_equal(np.asarray(getattr(a, f.name), dtype=object), np.asarray(getattr(b, f.name), dtype=object))}
+
+
+def test_every_candidate_maps_to_the_diagram_and_the_linear_model():
+    nominal = nominal_options()
+    base = LinearParams(kp=np.zeros(210), kv=np.zeros(210))
+    for e in CATALOGUE:
+        assert len(e.parameters) <= 2 and all(p.lower < p.upper and p.lower <= p.start <= p.upper for p in e.parameters)
+        values = e.values([p.start for p in e.parameters])
+        assert changed_fields(e.apply_options(nominal, values), nominal), e.name
+        assert changed_fields(e.apply_linear(base, values, np.full(5, 0.01), np.full(5, 300.0)), base), e.name
+
+
+def test_trial_checks_and_noise_estimate():
+    fs, n = 100.0, 2400
+    t = np.arange(n) / fs
+    x = 0.01 * np.sin(2 * np.pi * 0.5 * t) * np.minimum(t / 2, 1)
+    rng = np.random.default_rng(1)
+    levels = {lvl: 0.01 * np.sin(2 * np.pi * 0.5 * t - 0.3) + rng.normal(0, 0.002, n)
+              for lvl in ("L5_S1_FE", "L4_L5_FE", "L3_L4_FE", "L2_L3_FE", "L1_L2_FE")}
+    trial = Trial(time=t, fs=fs, platform_displacement=x, lumbar_rotation=sum(levels.values()), levels=levels, source="sine")
+    data = prepare_trials([trial], period=20.0)
+    assert data[0].lines.size >= 1 and data[0].time.size == 2000
+    noise = estimate_noise(data)
+    assert noise[1:] == pytest.approx(np.full(5, 0.002), rel=0.25)
+    assert noise[0] == pytest.approx(0.002 * np.sqrt(5), rel=0.25)  # the total sums five noisy levels
+    short = dataclasses.replace(trial, time=t[:1500], platform_displacement=x[:1500], lumbar_rotation=trial.lumbar_rotation[:1500],
+                                levels={k: v[:1500] for k, v in levels.items()})
+    with pytest.raises(ValueError, match="too short"):
+        prepare_trials([short], period=20.0)
+    with pytest.raises(ValueError, match="no excitation"):
+        prepare_trials([dataclasses.replace(trial, platform_displacement=np.zeros(n))], period=20.0)
+    with pytest.raises(ValueError, match="output 'T1'"):
+        prepare_trials([trial], outputs=("T1",))
+    with pytest.raises(ValueError, match="no platform or pelvis displacement"):
+        prepare_trials([dataclasses.replace(trial, platform_displacement=None)])
+
+
+@pytest.fixture(scope="module")
+def model():
+    return td.load_model("sagittal")
+
+
+def test_diagnosis_names_withheld_damping_and_shrinks_the_gap(model, tmp_path):
+    nominal = nominal_options()
+    truth = truth_options(nominal, Case("damping", "extra_damping", {"damping": 20.0}, seed=3))
+    noise = np.radians(0.1)
+    trials = synthetic_trials(model, truth, [("a", 1.0, 1), ("b", 3.0, 2)], noise, seed=3, period=PERIOD)
+    d = diagnose_gap(model, trials, nominal, noise=noise, period=PERIOD, refine=2, max_effects=1,
+                     candidates=["extra_damping", "reflex_delay", "seat_compliance"], workers=2)
+    assert d.selected == ["extra_damping"], d.ranking
+    assert d.final["effects"]["extra_damping"]["damping"] == pytest.approx(20.0, rel=0.5)
+    assert d.shrink["gap"]["effect"] < d.shrink["gap"]["nominal"]
+    assert d.shrink["reduction_above_noise"] > 0.5
+    files = write_diagnosis(d, tmp_path)
+    text = files["report"].read_text()
+    assert "Where the gap lies" in text and "extra_damping" in text and files["frf_plot"].exists()
