@@ -9,7 +9,6 @@ which belongs to another model and other (measured) data. The car fit's time ser
 are saved for the validation section (no second fit).
 """
 
-import dataclasses
 
 import numpy as np
 
@@ -33,13 +32,6 @@ def _thesis_table(number: str) -> dict:
     from trunk_drake.data import load_toml
 
     return {g: {"kp": e["kp"], "kv": e["kv"]} for g, e in load_toml("reference_values.toml")["reflex"][f"thesis_table_{number}"].items()}
-
-
-def _settling(duration: float):
-    """settling_target() whose zero target carries a 1e-9 rad ramp: optim.fit.goodness_of_fit raises on an
-    all-zero target (its VAF is undefined); the ramp changes the residuals by < 1e-6 noise SD."""
-    target = settling_target(duration=duration)
-    return dataclasses.replace(target, outputs={"lumbar_rotation": 1e-9 * target.time / target.time[-1]})
 
 
 def _bounded(value) -> str:
@@ -90,7 +82,7 @@ def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, tria
         model = load_model("sagittal")
     feedforward, warning = rp.coactivation_quiet(model, rp.reference_value("muscle.thesis.min_activation_retained"))
     rp.log("  settling fit (thesis 4.8.1) ...")
-    target = _settling(settling_duration)
+    target = settling_target(duration=settling_duration)
     settling = fit_reflex_gains(model, [target], scenario="settling",
                                 options=TrunkOptions(feedforward=feedforward), n_starts=1, workers=workers,
                                 max_iterations=max_iterations, progress=False)
@@ -166,9 +158,7 @@ def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, tria
                "Car-passenger fit conditions are the synthetic data's (conditions.toml: k = 300 Nm/rad, c = 6 Nms/rad, co-activation "
                "0.03, feed-forward from truth_feedforward.csv); residuals are weighted by the known 0.05 deg noise, so the cost's "
                "noise floor is half the number of samples. Outputs: total lumbar rotation and the five level angles.",
-               "The settling target is zero rotation plus a 1e-9 rad ramp: trunk_drake.optim.fit.goodness_of_fit cannot "
-               "compute the VAF of an all-zero target and stops the fit (an open issue of that module); the ramp leaves the "
-               "fit unchanged and its VAF is not reported.",
+               "The settling target is zero rotation; its VAF is undefined (no variance) and not reported.",
                "'not identifiable' = infinite standard deviation: the data do not constrain that gain. A kp is unidentifiable "
                "when the group's fibers never exceed l_d = 1 (optimal length) in the trials, so its length reflex never "
                "engages, in the truth either; the fit then leaves it at its start value.",
