@@ -17,7 +17,7 @@ Method (DESIGN.md section 7):
    prediction is the refitted simulation plus the linear model's relative change at the
    excited lines, so all candidates are screened in seconds. The best `refine` candidates
    are then refitted and scored with full nonlinear simulations; forward selection adds a
-   second effect under the same rule.
+   second effect when its dBIC also exceeds a tenth of the first effect's.
 3. *How far it shrinks*: 1 - VAF and the FRF error on the held-out halves before (nominal),
    after a gains-only refit and after the selected effect(s), with bootstrap intervals
    over 2 s windows.
@@ -428,7 +428,7 @@ class TimeDomainFitter:
             parts.append(((r - r.mean(axis=0)) / self.noise).ravel())
         return np.concatenate(parts)
 
-    def fit(self, effects, x0, free, max_iterations: int = 3) -> Fit:
+    def fit(self, effects, x0, free, max_iterations: int = 2) -> Fit:
         rank = self.screen.space.directions.shape[1]
         lo, hi, _ = bounds(rank, effects)
         x_full = np.clip(np.asarray(x0, float), lo, hi)
@@ -483,7 +483,7 @@ def search_effects(screen: LinearScreen, fitter: TimeDomainFitter, candidates, t
     penalty = np.log(n_test)
     rank = screen.space.directions.shape[1]
     fitter.seed(np.zeros(rank), (), nominal)
-    base = fitter.fit((), np.zeros(rank), np.arange(rank))
+    base = fitter.fit((), np.zeros(rank), np.arange(rank), max_iterations=3)
     if progress:
         progress(f"refitted the nominal gains: held-out chi2 {base.heldout_chi2:.0f}")
     reference = screen.reference(base.x, (), base.outputs) if base.outputs is not None else screen.nominal
@@ -516,6 +516,7 @@ def search_effects(screen: LinearScreen, fitter: TimeDomainFitter, candidates, t
     if refined and ranking[0]["delta_bic"] > threshold:
         selected = [ranking[0]["effect"]]
         current = fits[(selected[0],)]
+        first_gain = ranking[0]["delta_bic"]
         while len(selected) < max_effects:
             best = None
             for name in refined:
@@ -527,7 +528,9 @@ def search_effects(screen: LinearScreen, fitter: TimeDomainFitter, candidates, t
                 gain = current.heldout_chi2 - fit.heldout_chi2 - len(effect(name).parameters) * penalty
                 if best is None or gain > best[0]:
                     best = (gain, name, fit)
-            if best is None or best[0] <= threshold:
+            # an added effect must pass the threshold and explain at least a tenth of what the first
+            # one did: the first effect's imperfect fit leaves structure that others mop up
+            if best is None or best[0] <= max(threshold, 0.1 * first_gain):
                 break
             selected.append(best[1])
             current = best[2]
