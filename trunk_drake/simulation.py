@@ -145,13 +145,14 @@ def divergence_message(td: TrunkDiagram, root_context, q, v, names) -> str:
 
 
 def simulate(model, duration: float | None = None, perturbation="multisine", bandwidth: float = 1.0, seed: int = 0,
+             lowpass_hz: float | None = None,
              options: TrunkOptions | None = None, integrator: str = DEFAULT_INTEGRATOR, accuracy: float = DEFAULT_ACCURACY,
              log_rate: float = DEFAULT_LOG_RATE, max_step: float | None = None, progress: bool = False,
              **option_overrides) -> SimulationResult:
     """Simulate the sagittal trunk model (pelvis perturbation, muscles, reflexes, bushings).
 
     `perturbation`: "multisine" (default: 20 s period, 0.2 Hz to `bandwidth` Hz, 2 s fades,
-    seeded), None (no perturbation: settling under gravity), or any object with
+    seeded, optionally low-passed at `lowpass_hz` as the thesis' 2 Hz filter), None (no perturbation: settling under gravity), or any object with
     ``evaluate(t) -> (x, v, a)`` and a ``duration``. `duration` defaults to the signal's
     duration (or 5 s without perturbation). Every integrator step is logged and the
     histories are resampled (shape-preserving cubic, as the thesis did) onto a uniform grid
@@ -159,7 +160,7 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
     keyword arguments override fields of `TrunkOptions` (e.g. ``kp=0.2, tendon="compliant"``).
     """
     opts = dataclasses.replace(options or TrunkOptions(), **option_overrides)
-    signal = _perturbation(perturbation, bandwidth, seed)
+    signal = _perturbation(perturbation, bandwidth, seed, lowpass_hz)
     if duration is None:
         duration = signal.duration if signal is not None else 5.0
     if not (np.isfinite(duration) and duration > 0):
@@ -201,7 +202,7 @@ def _set_initial_muscle_state(td: TrunkDiagram, root_context) -> None:
     muscles.GetMyMutableContextFromRoot(root_context).SetContinuousState(x0)
 
 
-def _perturbation(perturbation, bandwidth, seed):
+def _perturbation(perturbation, bandwidth, seed, lowpass_hz=None):
     if perturbation is None:
         return None
     if isinstance(perturbation, str):
@@ -209,7 +210,8 @@ def _perturbation(perturbation, bandwidth, seed):
             raise ValueError(f"perturbation={perturbation!r}; expected 'multisine', None or a signal object")
         from trunk_drake.signals import make_multisine
 
-        return make_multisine(f_max=float(bandwidth), seed=seed, fade_shape="quintic")  # continuous acceleration
+        return make_multisine(f_max=float(bandwidth), seed=seed, fade_shape="quintic",  # continuous acceleration
+                              lowpass_hz=lowpass_hz)
     if not hasattr(perturbation, "evaluate"):
         raise ValueError("perturbation must have evaluate(t) -> (x, v, a)")
     return perturbation
@@ -305,6 +307,7 @@ def add_commands(sub) -> None:
     p.add_argument("--duration", type=float, default=20.0, help="simulated seconds (default 20)")
     p.add_argument("--bandwidth", type=float, default=1.0, help="highest perturbation frequency, Hz (1, 3 or 10)")
     p.add_argument("--seed", type=int, default=0, help="multisine phase seed")
+    p.add_argument("--lowpass-hz", type=float, default=None, help="low-pass the perturbation (the thesis used 2 Hz)")
     p.add_argument("--reflex-gains", default=None,
                    help=f"TOML/JSON with [kp] and [kv] per group (FILE#set picks a set); default: models/{DEFAULT_GAINS}")
     p.add_argument("--no-reflex", action="store_true", help="switch the stretch reflexes off")
@@ -332,7 +335,7 @@ def _cmd_simulate(args) -> int:
     model = load_model("sagittal")
     gains = {"kp": 0.0, "kv": 0.0} if args.no_reflex else load_reflex_gains(args.reflex_gains or models_dir() / DEFAULT_GAINS)
     result = simulate(
-        model, duration=args.duration, bandwidth=args.bandwidth, seed=args.seed, tendon=args.tendon,
+        model, duration=args.duration, bandwidth=args.bandwidth, seed=args.seed, lowpass_hz=args.lowpass_hz, tendon=args.tendon,
         feedforward=coactivation(model, args.coactivation), stiffness=args.stiffness, damping=args.damping,
         pelvis=args.pelvis, accuracy=args.accuracy, progress=args.progress, **gains,
     )

@@ -489,27 +489,37 @@ def search_effects(screen: LinearScreen, fitter: TimeDomainFitter, candidates, t
     reference = screen.reference(base.x, (), base.outputs) if base.outputs is not None else screen.nominal
     fits = {(): base}
     screening = []
+    base_residual = screen.residual(base.x, (), "test", reference)
+    failed = []
     for e in candidates:
         _, _, start = bounds(rank, (e,))
         start[:rank] = base.x
-        lin = screen.fit((e,), reference, start, free=np.arange(rank, start.size))
-        base_lin = float(screen.residual(base.x, (), "test", reference) @ screen.residual(base.x, (), "test", reference))
-        screening.append((base_lin - lin.heldout_chi2 - len(e.parameters) * penalty, e, lin))
+        try:
+            lin = screen.fit((e,), reference, start, free=np.arange(rank, start.size))
+        except (ValueError, RuntimeError, np.linalg.LinAlgError) as err:  # reported, not dropped
+            failed.append({"effect": e.name, "description": e.description, "n_parameters": len(e.parameters),
+                           "linear_delta_bic": -np.inf, "status": f"failed in screening: {err}"})
+            continue
+        screening.append((float(base_residual @ base_residual) - lin.heldout_chi2 - len(e.parameters) * penalty, e, lin))
         if progress:
             progress(f"screened {e.name}: linear dBIC {screening[-1][0]:.1f}")
     screening.sort(key=lambda item: -item[0])
     ranking = []
     for k, (lin_dbic, e, lin) in enumerate(screening):
         row = {"effect": e.name, "description": e.description, "n_parameters": len(e.parameters),
-               "linear_delta_bic": float(lin_dbic), "linear_values": lin.values.get(e.name)}
+               "linear_delta_bic": float(lin_dbic), "linear_values": lin.values.get(e.name), "status": "screened"}
         if k < refine:
             fit = fitter.fit((e,), lin.x, np.arange(rank, lin.x.size))
-            fits[(e.name,)] = fit
-            row.update(delta_bic=float(base.heldout_chi2 - fit.heldout_chi2 - len(e.parameters) * penalty),
-                       heldout_chi2=fit.heldout_chi2, values=fit.values.get(e.name))
+            if fit.outputs is None:
+                row["status"] = "failed: the refitted model diverged in simulation"
+            else:
+                fits[(e.name,)] = fit
+                row.update(delta_bic=float(base.heldout_chi2 - fit.heldout_chi2 - len(e.parameters) * penalty),
+                           heldout_chi2=fit.heldout_chi2, values=fit.values.get(e.name), status="refined")
             if progress:
-                progress(f"refined {e.name}: dBIC {row['delta_bic']:.1f} with {row['values']}")
+                progress(f"{e.name}: {row['status']}" + (f", dBIC {row['delta_bic']:.1f} with {row['values']}" if "delta_bic" in row else ""))
         ranking.append(row)
+    ranking += failed
     ranking.sort(key=lambda r: (-(r.get("delta_bic", -np.inf)), -r["linear_delta_bic"]))
     selected, current = [], base
     refined = [r["effect"] for r in ranking if "delta_bic" in r]

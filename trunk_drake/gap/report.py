@@ -56,12 +56,12 @@ def markdown(d, names: dict) -> str:
               "Each candidate is refitted with the nominal reflex gains and scored on held-out data: "
               "dBIC = chi2(gains-only refit) - chi2(candidate) - k ln N (positive favours the candidate; "
               f"claimed above {d.options['threshold']:g}).", "",
-              "| rank | effect | dBIC (nonlinear) | dBIC (linear screening) | fitted parameters |", "|---|---|---|---|---|"]
+              "| rank | effect | dBIC (nonlinear) | dBIC (linear screening) | fitted parameters | status |", "|---|---|---|---|---|---|"]
     for k, r in enumerate(d.ranking, 1):
         values = r.get("values") or r.get("linear_values") or {}
         text = ", ".join(f"{n} = {v:.4g}" for n, v in values.items())
-        dbic = f"{r['delta_bic']:.1f}" if "delta_bic" in r else "not refined"
-        lines.append(f"| {k} | {r['effect']} | {dbic} | {r['linear_delta_bic']:.1f} | {text} |")
+        dbic = f"{r['delta_bic']:.1f}" if "delta_bic" in r else "-"
+        lines.append(f"| {k} | {r['effect']} | {dbic} | {r['linear_delta_bic']:.1f} | {text} | {r.get('status', '')} |")
     lines += ["", f"![ranking]({names['ranking_plot']})", "", "## 3. How far the gap shrinks (held-out data)", ""]
     if s:
         gap = s["gap"]
