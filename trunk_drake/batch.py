@@ -35,6 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
+from trunk_drake.metadata import json_default
+
 CASE_DEFAULTS = {
     "direction": "extension", "strength_scale": 1.0, "min_activation": 0.01, "p": 2.0, "include_passive": True,
     "level": ["T6", "T7"], "shoulder": "model", "lumbar_flexion_deg": 0.0, "sweep": False, "step": 10.0, "dofs": "spine3d",
@@ -166,12 +168,6 @@ def write_csv(rows: list[dict], out_dir) -> Path:
     return path
 
 
-def _json_default(obj):
-    if isinstance(obj, (np.generic,)):
-        return obj.item()
-    raise TypeError(f"not JSON serialisable: {type(obj)}")
-
-
 # ---------------------------------------------------------------------------- runner
 
 def run_batch(cases: list[dict], out_dir, cluster: str | None = None, workers: int | None = None,
@@ -184,13 +180,13 @@ def run_batch(cases: list[dict], out_dir, cluster: str | None = None, workers: i
     rows = read_rows(out)
     if retry_failed:
         rows = [r for r in rows if r.get("status") == "ok"]
-        (out / RESULTS).write_text("".join(json.dumps(r, default=_json_default) + "\n" for r in rows))
+        (out / RESULTS).write_text("".join(json.dumps(r, default=json_default) + "\n" for r in rows))
     done = {r["case_id"] for r in rows}
     pending = [c for c in cases if c["case_id"] not in done]
     counts = {"cases": len(cases), "already_done": len(cases) - len(pending), "ran": 0, "ok": 0, "failed": 0}
     with (out / RESULTS).open("a") as sink, tqdm(total=len(pending), desc="strength-batch", disable=not progress) as bar:
         def record(row):
-            sink.write(json.dumps(row, default=_json_default) + "\n")
+            sink.write(json.dumps(row, default=json_default) + "\n")
             sink.flush()
             rows.append(row)
             counts["ran"] += 1

@@ -11,6 +11,8 @@ import importlib
 import json
 import sys
 
+from trunk_drake.metadata import json_default
+
 COMMAND_MODULES = (
     "trunk_drake.model.info",
     "trunk_drake.simulation",
@@ -21,19 +23,9 @@ COMMAND_MODULES = (
 )
 
 
-def _json_default(obj):
-    import numpy as np
-
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    raise TypeError(f"not JSON serialisable: {type(obj)}")
-
-
 def print_json(data) -> None:
     """Print `data` as indented JSON (numpy arrays and scalars allowed)."""
-    print(json.dumps(data, indent=2, default=_json_default))
+    print(json.dumps(data, indent=2, default=json_default))
 
 
 def build_parser() -> argparse.ArgumentParser:

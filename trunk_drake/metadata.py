@@ -12,6 +12,15 @@ import numpy as np
 PACKAGES = ("trunk-drake", "drake", "numpy", "scipy", "myo-sim", "numba")
 
 
+def json_default(obj):
+    """`default=` for json.dumps: numpy arrays and scalars as plain lists and numbers."""
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    raise TypeError(f"not JSON serialisable: {type(obj)}")
+
+
 def package_versions() -> dict[str, str]:
     out = {}
     for name in PACKAGES:

@@ -21,7 +21,8 @@ from trunk_drake.data import models_dir
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.gap.catalogue import effect
 from trunk_drake.gap.diagnose import diagnose_gap
-from trunk_drake.gap.report import _json_default, write_diagnosis
+from trunk_drake.gap.report import write_diagnosis
+from trunk_drake.metadata import json_default
 from trunk_drake.gap.synthetic import synthetic_trials
 
 DEFAULT_NOISE_DEG = 0.1  # motion-capture angle noise (modelling choice: ~0.2 mm marker noise over a few cm)
@@ -117,12 +118,12 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
                    "traceback": traceback.format_exc(limit=3)}
         done[case.name] = row
         with results_path.open("a") as f:
-            f.write(json.dumps(row, default=_json_default) + "\n")
+            f.write(json.dumps(row, default=json_default) + "\n")
         if progress:
             progress(f"[{k}/{len(all_cases)}] {case.name}: " + (row.get("error") or
                      f"ranked first {row['ranked_first']}, claimed {row['selected'] or 'none'} ({row['wall_time_s']:.0f} s)"))
     summary = summarize([done[c.name] for c in all_cases if c.name in done], noise_deg)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default))
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=json_default))
     (out / "summary.md").write_text(summary_markdown(summary))
     return summary
 

@@ -11,13 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-
-def _json_default(obj):
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        return obj.item()
-    return str(obj)
+from trunk_drake.metadata import json_default  # noqa: E402
 
 
 def write_diagnosis(diagnosis, out_dir) -> dict[str, Path]:
@@ -25,7 +19,7 @@ def write_diagnosis(diagnosis, out_dir) -> dict[str, Path]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = {"json": out / "diagnosis.json", "report": out / "report.md"}
-    files["json"].write_text(json.dumps(diagnosis.to_dict(), indent=2, default=_json_default))
+    files["json"].write_text(json.dumps(diagnosis.to_dict(), indent=2, default=json_default))
     files["frf_plot"] = _plot_where(diagnosis, out / "where_frf.png")
     files["ranking_plot"] = _plot_ranking(diagnosis, out / "ranking.png")
     if diagnosis.series:

@@ -27,6 +27,7 @@ import numpy as np
 from pydrake.solvers import MathematicalProgram, Solve
 
 from trunk_drake.diagram import TrunkOptions
+from trunk_drake.metadata import json_default
 from trunk_drake.signals import estimate_frf, vaf
 from trunk_drake.signals.sampled import SampledSignal
 from trunk_drake.simulation import SimulationError, simulate
@@ -438,21 +439,13 @@ def write_fit(result: FitResult, out_dir) -> dict:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = {"json": out / "fit.json", "gains": out / "gains.toml"}
-    files["json"].write_text(json.dumps(result.to_dict(), indent=2, default=_json_default))
+    files["json"].write_text(json.dumps(result.to_dict(), indent=2, default=json_default))
     lines = ["# Reflex gains fitted by trunk-drake (1 SD in comments).", "", "[kp]"]
     lines += [f"{g} = {v:.6g}  # +- {result.std['kp'][g]:.3g}" for g, v in result.gains["kp"].items()]
     lines += ["", "[kv]"] + [f"{g} = {v:.6g}  # +- {result.std['kv'][g]:.3g}" for g, v in result.gains["kv"].items()]
     files["gains"].write_text("\n".join(lines) + "\n")
     files.update(plot_fit(result, out))
     return files
-
-
-def _json_default(obj):
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        return obj.item()
-    return str(obj)
 
 
 def add_commands(sub) -> None:
@@ -503,7 +496,7 @@ def _cmd_fit(args) -> int:
                "n_simulations": result.n_simulations, "wall_time_s": result.wall_time_s,
                "files": {k: str(v) for k, v in files.items()}}
     if args.json:
-        print(json.dumps(summary, indent=2, default=_json_default))
+        print(json.dumps(summary, indent=2, default=json_default))
     else:
         print(f"fitted {len(result.parameter_names)} gains in {result.wall_time_s:.0f} s ({result.n_simulations} simulations); "
               f"results in {args.out}")
