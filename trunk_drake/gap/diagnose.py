@@ -133,13 +133,7 @@ def prepare_trials(trials, outputs=OUTPUT_NAMES, period: float = 20.0, fade: flo
         fs = trial.fs
         columns = []
         for out in outputs:
-            series = trial.lumbar_rotation if out == "lumbar_rotation" else trial.levels.get(out)
-            if out == "lumbar_rotation" and series is None and len(trial.levels) == 5:
-                series = sum(trial.levels.values())
-            if series is None:
-                raise ValueError(f"{name}: output {out!r} missing (found: {sorted(trial.column_map)}); "
-                                 "give it or choose outputs that are present")
-            columns.append(np.asarray(series, float))
+            columns.append(np.asarray(trial.output(out), float))
         per = int(round(period * fs))
         start = int(round(fade * fs))
         n_periods = (t.size - start) // per

@@ -173,6 +173,16 @@ class Trial:
         n = self.perturbation_name
         return None if n is None else getattr(self, n)
 
+    def output(self, name: str) -> np.ndarray:
+        """A kinematic output by name: ``lumbar_rotation`` (see total_lumbar_rotation) or a
+        level angle such as ``L4_L5_FE``; ValueError naming what the trial has otherwise."""
+        if name == "lumbar_rotation":
+            return self.total_lumbar_rotation()
+        if name not in self.levels:
+            raise ValueError(f"trial {self.source or ''}: output {name!r} missing (found: {sorted(self.column_map)}); "
+                             "give it or choose outputs that are present")
+        return self.levels[name]
+
     def total_lumbar_rotation(self) -> np.ndarray:
         """Total lumbar rotation (rad): the measured total if present, else the sum of
         all five per-level angles (raises if some levels are missing)."""

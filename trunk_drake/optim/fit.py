@@ -78,11 +78,7 @@ def targets_from_trials(trials, outputs=("lumbar_rotation",), noise: float | dic
         t = (trial.time - trial.time[0])[keep]
         measured = {}
         for name in outputs:
-            series = trial.lumbar_rotation if name == "lumbar_rotation" else trial.levels.get(name)
-            if name == "lumbar_rotation" and series is None and len(trial.levels) == 5:
-                series = sum(trial.levels.values())
-            if series is None:
-                raise ValueError(f"{where}: output {name!r} is not in the trial (columns: {sorted(trial.column_map)})")
+            series = trial.output(name)
             measured[name] = np.asarray(series, float)[keep] - series[0]
         sigma = {n: float(noise[n] if isinstance(noise, dict) else noise) for n in outputs}
         targets.append(FitTarget(where, t, measured, sigma, SampledSignal(t, x - x[0], lowpass_hz), x - x[0], period, steady_start))
