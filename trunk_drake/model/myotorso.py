@@ -12,6 +12,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from trunk_drake.model.paths import quat_matrix
 from trunk_drake.model.spec import (
     BodySpec,
     CouplingSpec,
@@ -34,17 +35,6 @@ def compile_myotorso():
     from myo_sim.build.compose import build_spec
 
     return build_spec("myotorso").compile()
-
-
-def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    w, x, y, z = q / np.linalg.norm(q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def _name(m, objtype, i) -> str:
@@ -88,7 +78,7 @@ def read_myotorso() -> ModelSpec:
 
     bodies = []
     for i in range(1, m.nbody):
-        r = _quat_to_matrix(m.body_iquat[i])
+        r = quat_matrix(m.body_iquat[i])
         parent = int(m.body_parentid[i])
         bodies.append(
             BodySpec(
