@@ -37,6 +37,7 @@ def _cmd_diagnose(args) -> int:
     from trunk_drake.gap.diagnose import diagnose_gap
     from trunk_drake.gap.report import write_diagnosis
     from trunk_drake.io.experiment import load_experiment
+    from trunk_drake.io.trials import available_outputs
     from trunk_drake.model.trunk_model import load_model
     from trunk_drake.simulation import load_reflex_gains
 
@@ -46,6 +47,7 @@ def _cmd_diagnose(args) -> int:
         options.update(load_reflex_gains(args.gains))
     noise = np.radians(args.noise_deg) if args.noise_deg is not None else experiment.noise_rad
     diagnosis = diagnose_gap(load_model("sagittal"), experiment.trials, TrunkOptions(**options), noise=noise,
+                             outputs=available_outputs(experiment.trials),
                              candidates=args.candidates, threshold=args.threshold, refine=args.refine,
                              period=experiment.period, fade=experiment.fade, workers=args.workers, progress=not args.json)
     files = write_diagnosis(diagnosis, args.out)

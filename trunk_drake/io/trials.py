@@ -60,7 +60,7 @@ import numpy as np
 
 from .storage import StorageData, read_table
 
-__all__ = ["Trial", "load_trial", "trial_from_table", "LUMBAR_LEVELS", "FIELD_ALIASES"]
+__all__ = ["Trial", "load_trial", "trial_from_table", "available_outputs", "LUMBAR_LEVELS", "FIELD_ALIASES"]
 
 #: Per-level sagittal joint angles, caudal to cranial.
 LUMBAR_LEVELS = ("L5_S1_FE", "L4_L5_FE", "L3_L4_FE", "L2_L3_FE", "L1_L2_FE")
@@ -195,6 +195,22 @@ class Trial:
                 f"{missing}; the total is the sum of all five levels."
             )
         return np.sum([self.levels[lv] for lv in LUMBAR_LEVELS], axis=0)
+
+
+def available_outputs(trials, names=("lumbar_rotation", *LUMBAR_LEVELS)) -> tuple[str, ...]:
+    """The kinematic outputs every trial provides (the total counts when it can be summed)."""
+    def has(trial, name):
+        try:
+            trial.output(name)
+        except ValueError:
+            return False
+        return True
+
+    found = tuple(n for n in names if all(has(t, n) for t in trials))
+    if not found:
+        raise ValueError("the trials share no kinematic output: give lumbar_rotation and/or the level angles "
+                         f"{', '.join(LUMBAR_LEVELS)} in every trial")
+    return found
 
 
 def _split_suffix(label_low: str, kind: str) -> tuple[str, str | None]:

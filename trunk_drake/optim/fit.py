@@ -454,7 +454,7 @@ def add_commands(sub) -> None:
     p.add_argument("--scenario", choices=sorted(THESIS_START), default="car")
     p.add_argument("--conditions", help="TOML with a [conditions] table (default: conditions.toml beside the data)")
     p.add_argument("--outputs", choices=["total", "levels", "all"], default="all",
-                   help="fit the total lumbar rotation, the five level angles, or both (default)")
+                   help="fit the total lumbar rotation, the five level angles, or all (default; those present in the data)")
     p.add_argument("--starts", type=int, default=1, help="number of starting points (multi-start)")
     p.add_argument("--workers", type=int, default=2, help="parallel simulation processes")
     p.add_argument("--max-iterations", type=int, default=20)
@@ -466,6 +466,7 @@ def _cmd_fit(args) -> int:
     import json
 
     from trunk_drake.io.experiment import load_experiment
+    from trunk_drake.io.trials import available_outputs
     from trunk_drake.model.trunk_model import load_model
     from trunk_drake.optim.static import coactivation
 
@@ -478,6 +479,7 @@ def _cmd_fit(args) -> int:
         if not args.data:
             raise ValueError("the car scenario needs measured trials: trunk-drake fit DATA... --out DIR")
         experiment = load_experiment(args.data, args.conditions)
+        names = tuple(n for n in names if n in available_outputs(experiment.trials)) or names
         noise = experiment.noise_rad if experiment.noise_rad is not None else np.radians(0.1)
         targets = targets_from_trials(experiment.trials, names, noise, period=experiment.period,
                                       steady_start=experiment.fade)
