@@ -433,7 +433,7 @@ def coactivation(model, min_activation: float = 0.020, q=None, reserves: float =
         detail = ", ".join(f"{c} {f:+.3g} Nm (~{np.degrees(abs(f) / k[c]) if k[c] > 0 else np.inf:.2g} deg on the bushing)"
                            for c, f in result.reserves_used.items() if abs(f) > 1e-3)
         warnings.warn(f"co-activation at min_activation={min_activation}: the muscles leave {detail} unbalanced; "
-                      "the posture settles until the bushings take it", stacklevel=2)
+                      "the reserves carry it here; in a simulation the trunk drifts from upright (with MyoTorso it can fall into extension)", stacklevel=2)
     return (result.activations, result) if return_result else result.activations
 
 

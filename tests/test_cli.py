@@ -1,0 +1,33 @@
+"""Command-line smoke tests: the documented commands run and fail clearly on bad input."""
+
+import json
+
+from trunk_drake.cli import main
+
+
+def test_model_info_json(capsys):
+    assert main(["model", "info", "--dofs", "spine3d", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert len(info["coordinates"]) == 15 and info["n_muscles"] == 210
+    assert abs(info["upper_body"]["com_anterior_of_L4_L5_joint_m"]) < 0.05
+
+
+def test_simulate_writes_files_and_json(tmp_path, capsys):
+    assert main(["simulate", "--duration", "1", "--out", str(tmp_path), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    for key in ("wall_time_s", "sim_time_s", "steps", "real_time_factor"):
+        assert key in summary
+    assert summary["sim_time_s"] == 1.0
+    for name in ("states.sto", "muscle_forces.sto", "kinematics.csv", "simulation.png", "summary.json"):
+        assert (tmp_path / name).exists(), name
+
+
+def test_bad_input_exits_with_a_message(tmp_path, capsys):
+    assert main(["diagnose", str(tmp_path / "missing.csv"), "--out", str(tmp_path)]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert main(["simulate", "--duration", "-1", "--out", str(tmp_path)]) == 2
+    assert "duration" in capsys.readouterr().err
+    bad = tmp_path / "gains.toml"
+    bad.write_text("[kp]\nsacrospinalis = 0.1\n")
+    assert main(["simulate", "--duration", "1", "--reflex-gains", str(bad), "--out", str(tmp_path)]) == 2
+    assert "kv" in capsys.readouterr().err
