@@ -21,6 +21,7 @@ MAX_STEP = 0.0125  # s; longer steps make Newton fail at the reflexes' kinks (me
 FIXED_STEP_INTEGRATORS = ("explicit_euler", "semi_explicit_euler", "runge_kutta2")
 DIVERGENCE_ANGLE = 1.6  # rad; a lumbar joint beyond this has left any physiological range
 DIVERGENCE_SPEED = 50.0  # rad/s
+UPRIGHT_DEG = 10.0
 
 
 class SimulationError(RuntimeError):
@@ -63,8 +64,15 @@ class SimulationResult:
         return self.q[:, self.coordinates.index(name)]
 
     def summary(self) -> dict:
-        """Numbers a user checks first (JSON-friendly)."""
+        """Numbers a user checks first (JSON-friendly), with a warning when the trunk left the
+        upright posture (more than UPRIGHT_DEG of mean rotation over the last second)."""
         rot = np.degrees(self.lumbar_rotation - self.lumbar_rotation[0])
+        settled = float(np.mean(rot[self.time >= self.time[-1] - 1.0]))
+        warning = None
+        if abs(settled) > UPRIGHT_DEG:
+            warning = (f"the trunk left the upright posture ({settled:+.1f} deg of lumbar {'flexion' if settled > 0 else 'extension'} "
+                       "over the last second): with these bushings, co-activation and gains MyoTorso does not hold itself "
+                       "upright (about 300 Nm/rad per level are needed without active stabilisation; see README)")
         return {
             "wall_time_s": self.wall_time_s,
             "sim_time_s": self.sim_time_s,
@@ -75,6 +83,7 @@ class SimulationResult:
             "lumbar_rotation_deg": {"final": float(rot[-1]), "min": float(rot.min()), "max": float(rot.max()),
                                     "rms": float(np.sqrt(np.mean(rot**2)))},
             "platform_peak_m": float(np.abs(self.platform[:, 0]).max()),
+            "warning": warning,
         }
 
     def write(self, out_dir, plot: bool = True) -> dict[str, Path]:
@@ -346,4 +355,6 @@ def _cmd_simulate(args) -> int:
     else:
         print(f"simulated {summary['sim_time_s']:.1f} s in {summary['wall_time_s']:.2f} s "
               f"(real-time factor {summary['real_time_factor']:.1f}, {summary['steps']} steps); results in {args.out}")
+        if summary["warning"]:
+            print(f"warning: {summary['warning']}")
     return 0
