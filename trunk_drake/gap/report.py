@@ -41,11 +41,12 @@ def markdown(d, names: dict) -> str:
     for trial, f in d.where["per_frequency"].items():
         sig = np.asarray(f["significant"])
         freqs = np.asarray(f["frequencies_hz"])
-        listed = ", ".join(f"{x:.2f}" for x in freqs[sig]) or "none"
+        where = (f"significant FRF errors (beyond 2 SD of the data) at {', '.join(f'{x:.2f}' for x in freqs[sig])} Hz"
+                 if sig.any() else "no FRF error beyond 2 SD of the data")
         ratio = f["nonexcited_ratio_data"], f["nonexcited_ratio_model"]
-        lines.append(f"- `{Path(trial).name}`: significant FRF errors (beyond 2 SD of the data) at {listed} Hz; "
-                     f"power at non-excited lines / excited, data {ratio[0]:.2g} vs model {ratio[1]:.2g}"
-                     if ratio[0] is not None and ratio[1] is not None else f"- `{Path(trial).name}`: significant FRF errors at {listed} Hz")
+        if ratio[0] is not None and ratio[1] is not None:
+            where += f"; power at non-excited lines / excited: data {ratio[0]:.2g}, model {ratio[1]:.2g}"
+        lines.append(f"- `{Path(trial).name}`: {where}")
     lines += ["", f"![FRF errors]({names['frf_plot']})", "", "## 2. Which unmodelled effect", "",
               "Each candidate is refitted with the nominal reflex gains and scored on held-out data: "
               "dBIC = chi2(gains-only refit) - chi2(candidate) - k ln N (positive favours the candidate; "
