@@ -68,7 +68,7 @@ _LINEAR = {
     "reflex_delay": lambda p, v, amp, k: dataclasses.replace(p, reflex_delay=v["delay"]),
     "golgi_feedback": lambda p, v, amp, k: dataclasses.replace(p, gto_gain=v["gain"]),
     "trunk_in_space": lambda p, v, amp, k: dataclasses.replace(p, vestibular_gain=v["gain"], vestibular_delay=v["delay"]),
-    # M = -k (dq + c dq^3): statistical linearisation of dq^3 for a Gaussian-like signal: 3 sigma^2 dq
+    # M = -k (dq + c dq^3): statistical linearisation of dq^3 for a Gaussian-like signal about 0: 3 E[dq^2] dq
     "stiffening_discs": lambda p, v, amp, k: dataclasses.replace(p, extra_stiffness=k * 3.0 * v["cubic"] * amp**2),
     "seat_compliance": lambda p, v, amp, k: dataclasses.replace(p, seat_stiffness=v["stiffness"], seat_damping=v["damping"]),
     "slow_activation": lambda p, v, amp, k: dataclasses.replace(p, activation_scale=v["scale"]),

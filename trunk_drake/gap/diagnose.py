@@ -176,9 +176,11 @@ def _simulate_outputs(model, options: TrunkOptions, trial: TrialData, outputs) -
     columns = [result.lumbar_rotation if o == "lumbar_rotation" else result.coordinate(o) for o in outputs]
     y = np.column_stack(columns)[trial.window]
     win = trial.window
-    op = {"q": result.q[win][:, [result.coordinates.index(c) for c in OUTPUT_NAMES[1:]]].mean(axis=0),
-          "a": result.activation[win].mean(axis=0), "u": result.excitation[win].mean(axis=0),
-          "amplitude": np.std(result.q[win][:, [result.coordinates.index(c) for c in OUTPUT_NAMES[1:]]], axis=0)}
+    levels = result.q[win][:, [result.coordinates.index(c) for c in OUTPUT_NAMES[1:]]]
+    # "amplitude": RMS of each level's angle about the bushings' rest angle (0), offset included,
+    # for the statistical linearisation of amplitude-dependent laws
+    op = {"q": levels.mean(axis=0), "a": result.activation[win].mean(axis=0), "u": result.excitation[win].mean(axis=0),
+          "amplitude": np.sqrt(np.mean(levels**2, axis=0))}
     return y - y.mean(axis=0), op
 
 
