@@ -37,6 +37,7 @@ class Effect:
     description: str
     parameters: tuple[Parameter, ...]
     note: str = ""
+    amplitude_dependent: bool = False  # the linear screening only approximates it (statistical linearisation)
 
     def values(self, x) -> dict[str, float]:
         return {p.name: p.value(v) for p, v in zip(self.parameters, x)}
@@ -87,7 +88,8 @@ CATALOGUE: tuple[Effect, ...] = (
            "bounds are a modelling choice (vestibular/visual latencies are longer than spinal ones)"),
     Effect("stiffening_discs", "nonlinear, stiffening intervertebral moment-angle law M = -k (q + c q^3)",
            (Parameter("cubic", 0.0, 2000.0, 50.0, unit="1/rad^2"),),
-           "at 0.05 rad, c = 2000 triples the stiffness; amplitude-dependent, so trials of different size separate it from a stiffness error"),
+           "at 0.05 rad, c = 2000 triples the stiffness; amplitude-dependent, so trials of different size separate it from a stiffness error",
+           amplitude_dependent=True),
     Effect("seat_compliance", "pelvis-seat compliance: the pelvis does not follow the platform exactly",
            (Parameter("stiffness", 3.0, 6.0, 5.0, log10=True, unit="N/m"), Parameter("damping", 1.0, 4.0, 2.5, log10=True, unit="N s/m")),
            "spring-damper between platform and pelvis (pelvis mass: the model's sacrum)"),

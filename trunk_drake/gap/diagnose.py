@@ -473,8 +473,9 @@ def _group_gains(model, value) -> dict[str, float]:
 def search_effects(screen: LinearScreen, fitter: TimeDomainFitter, candidates, threshold: float, max_effects: int,
                    refine: int, nominal, progress=None):
     """The gains-only refit (nonlinear), then every candidate screened linearly around it with
-    the refitted gains held, the best `refine` refined with nonlinear simulations; effects are
-    claimed by held-out dBIC; forward selection adds one at a time."""
+    the refitted gains held, the best `refine` refined with nonlinear simulations (and every
+    amplitude-dependent effect the screening finds any gain in, since its linearisation is only
+    statistical); effects are claimed by held-out dBIC; forward selection adds one at a time."""
     n_test = sum(t.y[t.half("test")].size for t in screen.trials)
     penalty = np.log(n_test)
     rank = screen.space.directions.shape[1]
@@ -504,7 +505,7 @@ def search_effects(screen: LinearScreen, fitter: TimeDomainFitter, candidates, t
     for k, (lin_dbic, e, lin) in enumerate(screening):
         row = {"effect": e.name, "description": e.description, "n_parameters": len(e.parameters),
                "linear_delta_bic": float(lin_dbic), "linear_values": lin.values.get(e.name), "status": "screened"}
-        if k < refine:
+        if k < refine or (e.amplitude_dependent and lin_dbic > 0):
             fit = fitter.fit((e,), lin.x, np.arange(rank, lin.x.size))
             if fit.outputs is None:
                 row["status"] = "failed: the refitted model diverged in simulation"
