@@ -13,9 +13,9 @@ import platform
 import time
 
 import numpy as np
-import pydrake
 
 import trunk_drake as td
+from trunk_drake.metadata import package_versions
 from trunk_drake.optim.static import StaticInfeasibleError, StaticOptimizer
 from trunk_drake.optim.strength import isometric_strength
 
@@ -45,7 +45,7 @@ def frame_times(model, p, n=100, seed=0):
 
 def main():
     out = {"machine": platform.processor() or platform.machine(), "python": platform.python_version(),
-           "drake": getattr(pydrake, "__version__", "unknown")}
+           "versions": package_versions()}
     start = time.perf_counter()
     model = td.load_model(dofs="spine3d")
     out["model_load_s"] = time.perf_counter() - start
