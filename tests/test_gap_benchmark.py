@@ -37,6 +37,7 @@ def test_summary_leaves_unobservable_cases_out_of_the_rates():
             row("n1", None, "reflex_delay", []), row("n2", None, "golgi_feedback", ["golgi_feedback"])]
     s = summarize(rows, 0.1)
     assert s["ranked_first_rate"] == 0.5 and s["no_effect_correct_rate"] == 0.5
+    assert abs(s["ranked_first_rate_all"] - 1 / 3) < 1e-12
     assert s["unobservable"] == ["s1"]
     assert s["confusion"]["stiffening_discs"]["none"] == 1 and s["confusion"]["none"]["golgi_feedback"] == 1
     assert "unobservable" in summary_markdown(s)

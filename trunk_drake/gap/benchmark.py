@@ -165,6 +165,8 @@ def summarize(rows: list[dict], noise_deg: float) -> dict:
         "cases": len(rows), "failed": [r["case"] for r in rows if "error" in r],
         "unobservable": [r["case"] for r in unobservable],
         "ranked_first_rate": float(np.mean([r["ranked_first"] == r["truth"] for r in effect_rows])) if effect_rows else None,
+        "ranked_first_rate_all": float(np.mean([r["ranked_first"] == r["truth"] for r in effect_rows + unobservable]))
+        if effect_rows + unobservable else None,
         "claimed_correct_rate": float(np.mean([bool(r["selected"]) and r["selected"][0] == r["truth"] for r in effect_rows])) if effect_rows else None,
         "no_effect_correct_rate": float(np.mean([not r["selected"] for r in null_rows])) if null_rows else None,
         "gap_reduction_above_noise": {"median": float(np.median(reductions)) if reductions else None,
@@ -184,7 +186,7 @@ def summary_markdown(s: dict) -> str:
              f"- withheld effect ranked first: {_pct(s['ranked_first_rate'])} (target 90 %; over the effect cases"
              f" whose effect is observable at all, i.e. changes the noise-free data by more than a claim needs)",
              f"- unobservable effect cases (counted in the confusion matrix, not in the rates): "
-             f"{', '.join(s['unobservable']) or 'none'}",
+             f"{', '.join(s['unobservable']) or 'none'}; ranked first over all effect cases: {_pct(s['ranked_first_rate_all'])}",
              f"- withheld effect claimed (dBIC above threshold): {_pct(s['claimed_correct_rate'])}",
              f"- no-effect cases with no effect claimed: {_pct(s['no_effect_correct_rate'])} (target 90 %)",
              f"- gap removed by the identified effect, above the noise floor (held-out 1 - VAF): median "
