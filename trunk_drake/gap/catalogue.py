@@ -37,7 +37,9 @@ class Effect:
     description: str
     parameters: tuple[Parameter, ...]
     note: str = ""
-    amplitude_dependent: bool = False  # the linear screening only approximates it (statistical linearisation)
+    # nonlinear in amplitude: the screening sees only its statistically linearised stiffness, not the
+    # shift of the operating point it causes, so the search always refines it with nonlinear simulations
+    amplitude_dependent: bool = False
 
     def values(self, x) -> dict[str, float]:
         return {p.name: p.value(v) for p, v in zip(self.parameters, x)}

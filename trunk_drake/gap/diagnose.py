@@ -16,7 +16,8 @@ Method (DESIGN.md section 7):
    the diagram is linearised once around the nominal operating point and a candidate's
    prediction is the refitted simulation plus the linear model's relative change at the
    excited lines, so all candidates are screened in seconds. The best `refine` candidates
-   are then refitted and scored with full nonlinear simulations; forward selection adds a
+   (and the amplitude-dependent ones, whose linearisation misses the operating-point shift
+   they cause) are then refitted and scored with full nonlinear simulations; forward selection adds a
    second effect when its dBIC also exceeds a tenth of the first effect's.
 3. *How far it shrinks*: 1 - VAF and the FRF error on the held-out halves before (nominal),
    after a gains-only refit and after the selected effect(s), with bootstrap intervals
@@ -473,9 +474,9 @@ def _group_gains(model, value) -> dict[str, float]:
 def search_effects(screen: LinearScreen, fitter: TimeDomainFitter, candidates, threshold: float, max_effects: int,
                    refine: int, nominal, progress=None):
     """The gains-only refit (nonlinear), then every candidate screened linearly around it with
-    the refitted gains held, the best `refine` refined with nonlinear simulations (and every
-    amplitude-dependent effect the screening finds any gain in, since its linearisation is only
-    statistical); effects are claimed by held-out dBIC; forward selection adds one at a time."""
+    the refitted gains held, the best `refine` and every amplitude-dependent effect (whose
+    screening is blind to the operating-point shift it causes) refined with nonlinear
+    simulations; effects are claimed by held-out dBIC; forward selection adds one at a time."""
     n_test = sum(t.y[t.half("test")].size for t in screen.trials)
     penalty = np.log(n_test)
     rank = screen.space.directions.shape[1]
@@ -505,7 +506,7 @@ def search_effects(screen: LinearScreen, fitter: TimeDomainFitter, candidates, t
     for k, (lin_dbic, e, lin) in enumerate(screening):
         row = {"effect": e.name, "description": e.description, "n_parameters": len(e.parameters),
                "linear_delta_bic": float(lin_dbic), "linear_values": lin.values.get(e.name), "status": "screened"}
-        if k < refine or (e.amplitude_dependent and lin_dbic > 0):
+        if k < refine or e.amplitude_dependent:
             fit = fitter.fit((e,), lin.x, np.arange(rank, lin.x.size))
             if fit.outputs is None:
                 row["status"] = "failed: the refitted model diverged in simulation"
