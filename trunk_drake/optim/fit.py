@@ -479,7 +479,8 @@ def _cmd_fit(args) -> int:
         if not args.data:
             raise ValueError("the car scenario needs measured trials: trunk-drake fit DATA... --out DIR")
         experiment = load_experiment(args.data, args.conditions)
-        names = tuple(n for n in names if n in available_outputs(experiment.trials)) or names
+        present = available_outputs(experiment.trials)
+        names = tuple(n for n in names if n in present) or names
         noise = experiment.noise_rad if experiment.noise_rad is not None else np.radians(0.1)
         targets = targets_from_trials(experiment.trials, names, noise, period=experiment.period,
                                       steady_start=experiment.fade)
