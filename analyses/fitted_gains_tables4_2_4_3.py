@@ -9,7 +9,6 @@ which belongs to another model and other (measured) data. The car fit's time ser
 are saved for the validation section (no second fit).
 """
 
-
 import numpy as np
 
 from trunk_drake import reproduce as rp
