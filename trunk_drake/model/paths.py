@@ -286,13 +286,15 @@ def _add_segment(m, P, a, ba, Q, b, bb, revolute, moves, axes, axo, lengths, gra
     u0, u1, u2 = Q[b, 0] - P[a, 0], Q[b, 1] - P[a, 1], Q[b, 2] - P[a, 2]
     L = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
     lengths[m] += L
-    if L < MINVAL:
+    if L < MINVAL or ba == bb:  # both ends on one body: no coordinate changes the segment's length
         return
     u0, u1, u2 = u0 / L, u1 / L, u2 / L
     # u . (J_b - J_a); revolute column k: moves * a_k . (p x u) - u . (a_k x o_k)
     ca0, ca1, ca2 = P[a, 1] * u2 - P[a, 2] * u1, P[a, 2] * u0 - P[a, 0] * u2, P[a, 0] * u1 - P[a, 1] * u0
     cb0, cb1, cb2 = Q[b, 1] * u2 - Q[b, 2] * u1, Q[b, 2] * u0 - Q[b, 0] * u2, Q[b, 0] * u1 - Q[b, 1] * u0
     for k in range(axes.shape[0]):
+        if moves[bb, k] == moves[ba, k]:  # the joint moves both ends or neither: the terms cancel exactly
+            continue
         if revolute[k]:
             base = u0 * axo[k, 0] + u1 * axo[k, 1] + u2 * axo[k, 2]
             ja = axes[k, 0] * ca0 + axes[k, 1] * ca1 + axes[k, 2] * ca2 - base
@@ -390,18 +392,14 @@ class MusclePaths:
         self._wr_radius = np.array([g.radius for g in geoms], dtype=float)
         self._wr_cyl = np.array([g.kind == "cylinder" for g in geoms], dtype=np.bool_)
 
-    def bodies_used(self) -> set[int]:
-        """Indices of the bodies whose poses `compute` reads."""
-        return {int(b) for b in self._site_body} | {int(b) for b in self._wr_body}
-
     def compute(self, R_body: np.ndarray, p_body: np.ndarray, axes: np.ndarray, origins: np.ndarray, v: np.ndarray | None = None) -> PathState:
-        """Lengths and moment arms from body poses (R (nb, 3, 3), p (nb, 3)) and coordinate axes.
+        """Lengths and moment arms from body poses (C-contiguous R (nb, 3, 3), p (nb, 3)) and coordinate axes.
 
         axes, origins: (n_coords, 3) world joint axes and points on them (origins unused for
         slides). With `v` (generalized velocities), lengthening velocities are returned too.
         """
         lengths, grad = _path_kernel(
-            np.ascontiguousarray(R_body), np.ascontiguousarray(p_body), axes, origins, self._revolute, self._moves,
+            R_body, p_body, axes, origins, self._revolute, self._moves,
             self._site_body, self._site_local, self._st, self._wr, self._wr_body, self._wr_pos, self._wr_rot,
             self._wr_radius, self._wr_cyl, self.n_muscles,
         )

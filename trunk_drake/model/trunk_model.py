@@ -9,6 +9,7 @@ import numpy as np
 from pydrake.multibody.tree import BodyIndex, JointIndex
 
 from trunk_drake.model.architecture import with_hill_parameters
+from trunk_drake.model.kinematics import TreeKinematics
 from trunk_drake.model.myotorso import read_myotorso
 from trunk_drake.model.paths import MusclePaths, PathState
 from trunk_drake.model.plant import DOFS, Coordinate, build_plant
@@ -20,7 +21,7 @@ class TrunkModel:
     """A finalized plant with named coordinates and vectorised muscle path kinematics.
 
     Build it with `load_model`. `path_state(q, v)` evaluates all 210 muscle paths at once;
-    every system and optimiser uses it (or `path_state_from_context`).
+    every system and optimiser uses it (the diagram its unchecked form `path_state_from_q`).
     """
 
     spec: ModelSpec
@@ -30,7 +31,7 @@ class TrunkModel:
     plant: object
     coordinate_info: list[Coordinate]
     _paths: MusclePaths = field(repr=False)
-    _context: object = field(repr=False)
+    _kinematics: TreeKinematics = field(repr=False)
     _warned: set = field(default_factory=set, repr=False)
 
     # ---- names -------------------------------------------------------------------
@@ -83,26 +84,17 @@ class TrunkModel:
                 )
         return q
 
-    def path_state_from_context(self, context, v=None) -> PathState:
-        """Muscle path kinematics for a plant context (body poses read from the plant)."""
-        plant = self.plant
-        all_poses = plant.get_body_poses_output_port().Eval(context)
-        poses = np.zeros((len(all_poses), 3, 4))
-        for i in self._pose_bodies:  # only bodies that carry sites, wraps or joint frames
-            poses[i] = all_poses[i].GetAsMatrix34()
-        R, p = poses[:, :, :3], poses[:, :, 3]
-        Rj = R[self._joint_body]
-        axes = (Rj @ self._joint_axis[:, :, None])[:, :, 0]
-        origins = (Rj @ self._joint_anchor[:, :, None])[:, :, 0] + p[self._joint_body]
+    def path_state_from_q(self, q, v=None) -> PathState:
+        """`path_state` without input checks (the per-step path: q and v float arrays of the right size)."""
+        R, p, axes, origins = self._kinematics.frames(q)
         return self._paths.compute(R, p, axes, origins, v)
 
     def path_state(self, q, v=None) -> PathState:
         """Lengths (m), moment arms (m or m/rad, = -dL/dq) and, with v, lengthening velocities."""
         q = self.check_q(q)
-        self.plant.SetPositions(self._context, q)
         if v is not None:
             v = self.check_q(v, "v", check_range=False)
-        return self.path_state_from_context(self._context, v)
+        return self.path_state_from_q(q, v)
 
     def muscle_lengths(self, q) -> np.ndarray:
         """Musculotendon lengths (n_muscles,), m."""
@@ -116,24 +108,6 @@ class TrunkModel:
         """Musculotendon lengthening velocities (n_muscles,), m/s."""
         return self.path_state(q, v).velocities
 
-    # ---- set-up --------------------------------------------------------------------
-    def _init_joints(self):
-        """Per coordinate: the body carrying its child frame, axis and anchor in that body."""
-        body, axis, anchor = [], [], []
-        for c in self.coordinate_info:
-            joint = self.plant.GetJointByName(c.name)
-            frame = joint.frame_on_child()
-            X_BM = frame.GetFixedPoseInBodyFrame()
-            axis_M = joint.revolute_axis() if c.kind == "hinge" else joint.translation_axis()
-            body.append(int(frame.body().index()))
-            axis.append(X_BM.rotation().matrix() @ np.asarray(axis_M))
-            anchor.append(X_BM.translation())
-        self._joint_body = np.array(body, dtype=int)
-        self._pose_bodies = sorted(set(body) | self._paths.bodies_used())
-        self._joint_axis = np.array(axis, dtype=float).reshape(-1, 3)
-        self._joint_anchor = np.array(anchor, dtype=float).reshape(-1, 3)
-
-
 def _build(spec: ModelSpec, dofs: str, pelvis_mass: float | None, pelvis_free: bool) -> TrunkModel:
     plant, coords = build_plant(spec, dofs, pelvis_mass=pelvis_mass, pelvis_free=pelvis_free)
     n_bodies = plant.num_bodies()
@@ -144,8 +118,8 @@ def _build(spec: ModelSpec, dofs: str, pelvis_mass: float | None, pelvis_free: b
             moves[int(b), k] = 1.0
     names = [plant.get_body(_body_index(i)).name() for i in range(n_bodies)]
     paths = MusclePaths(spec, names, [c.kind for c in coords], moves)
-    model = TrunkModel(spec=spec, dofs=dofs, pelvis_free=pelvis_free, pelvis_mass=pelvis_mass, plant=plant, coordinate_info=coords, _paths=paths, _context=plant.CreateDefaultContext())
-    model._init_joints()
+    model = TrunkModel(spec=spec, dofs=dofs, pelvis_free=pelvis_free, pelvis_mass=pelvis_mass, plant=plant, coordinate_info=coords,
+                       _paths=paths, _kinematics=TreeKinematics(plant, [c.name for c in coords]))
     return model
 
 

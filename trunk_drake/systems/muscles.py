@@ -9,6 +9,7 @@ from pydrake.systems.framework import LeafSystem
 from trunk_drake.model.paths import PathState
 from trunk_drake.muscle import thelen
 from trunk_drake.muscle.thelen import MuscleParameters, ThelenConstants
+from trunk_drake.systems.memo import declare_memo
 
 TENDON_MODES = ("rigid", "compliant")
 
@@ -58,9 +59,11 @@ class MuscleSystem(LeafSystem):
             x0 = np.concatenate([x0, self.params.optimal_fiber_length])
         self.DeclareContinuousState(len(x0))
         self._x0 = x0
-        self._kin_path, self._kin = None, None
         self._u = self.DeclareVectorInputPort("excitation", n)
         self._path = self.DeclareAbstractInputPort("path_state", AbstractValue.Make(empty_path_state(model)))
+        self._kin = declare_memo(self, "rigid-tendon fiber kinematics", self._path.Eval,  # the path object: by identity
+                                 lambda c: thelen.rigid_kinematics(self._path.Eval(c).lengths, self._path.Eval(c).velocities,
+                                                                   self.params, self.constants), {self._path.ticket()})
         state_and_path = {self.all_state_ticket(), self._path.ticket()}
         template = thelen.rigid_tendon(self._x0[:n], self.params.tendon_slack_length + self.params.optimal_fiber_length, 0.0, self.params, self.constants)
         self._state_port = self.DeclareAbstractOutputPort(
@@ -86,24 +89,18 @@ class MuscleSystem(LeafSystem):
     def muscle_state(self, context) -> thelen.MuscleState:
         return self._state_port.Eval(context)
 
-    def _kinematics(self, path) -> thelen.RigidKinematics:
-        if path is not self._kin_path:  # memo: the fiber kinematics depend only on the path
-            self._kin = thelen.rigid_kinematics(path.lengths, path.velocities, self.params, self.constants)
-            self._kin_path = path
-        return self._kin
-
     def _tendon_force(self, context) -> np.ndarray:
         if self.tendon == "compliant":
             return self.muscle_state(context).tendon_force
         x = context.get_continuous_state_vector().CopyToVector()
-        force = thelen.rigid_tendon_force(x, self._kinematics(self._path.Eval(context)), self.params, self.constants)
+        force = thelen.rigid_tendon_force(x, self._kin.Eval(context), self.params, self.constants)
         return force if self.mask is None else force * self.mask
 
     def _calc_state(self, context, output):
         x = context.get_continuous_state_vector().CopyToVector()
         path = self._path.Eval(context)
         if self.tendon == "rigid":
-            value = thelen.rigid_tendon(x, path.lengths, path.velocities, self.params, self.constants, self._kinematics(path))
+            value = thelen.rigid_tendon(x, path.lengths, path.velocities, self.params, self.constants, self._kin.Eval(context))
         else:
             value = thelen.compliant_tendon(x[: self.n], x[self.n :], path.lengths, self.params, self.constants)
         if self.mask is not None:
@@ -113,7 +110,7 @@ class MuscleSystem(LeafSystem):
     def _field(self, name):
         """Fiber kinematics: from the path alone with rigid tendons, else from the full state."""
         if self.tendon == "rigid" and name != "fiber_length":
-            return lambda c, o: o.SetFromVector(getattr(self._kinematics(self._path.Eval(c)), name))
+            return lambda c, o: o.SetFromVector(getattr(self._kin.Eval(c), name))
         return lambda c, o: o.SetFromVector(getattr(self.muscle_state(c), name))
 
     def _calc_generalized_force(self, context, output):

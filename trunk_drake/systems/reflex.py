@@ -1,9 +1,13 @@
-"""Excitation: feed-forward plus feedback channels, and the thesis' stretch reflex (seed eq. 3.2)."""
+"""Excitation: feed-forward plus feedback channels, and the thesis' stretch reflex (seed eq. 3.2).
+
+Both are small Diagrams of Drake's compiled primitives (no Python per evaluation).
+"""
 
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import LeafSystem
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import Adder, ConstantVectorSource, Gain, Saturation
 
 
 def gains_by_group(model, values: dict[str, float], default: float = 0.0) -> np.ndarray:
@@ -21,7 +25,7 @@ def gains_by_group(model, values: dict[str, float], default: float = 0.0) -> np.
     return gains
 
 
-class StretchReflex(LeafSystem):
+class StretchReflex(Diagram):
     """The Muscle Fiber Stretch Controller: feedback = kp (l_n - l_d)+ + kv (dl_n)+.
 
     Inputs ``normalized_fiber_length`` (l / l_opt) and ``normalized_fiber_velocity``
@@ -34,18 +38,30 @@ class StretchReflex(LeafSystem):
         self.kp = np.broadcast_to(np.asarray(kp, float), (n,)).copy()
         self.kv = np.broadcast_to(np.asarray(kv, float), (n,)).copy()
         self.l_desired = np.broadcast_to(np.asarray(l_desired, float), (n,)).copy()
-        self._ln = self.DeclareVectorInputPort("normalized_fiber_length", n)
-        self._vn = self.DeclareVectorInputPort("normalized_fiber_velocity", n)
-        self.DeclareVectorOutputPort("feedback", n, self._calc)
+        positive = np.zeros(n), np.full(n, np.inf)
+        b = DiagramBuilder()
+        stretch = b.AddNamedSystem("stretch", Adder(2, n))
+        set_point = b.AddNamedSystem("set_point", ConstantVectorSource(-self.l_desired))
+        b.Connect(set_point.get_output_port(), stretch.get_input_port(1))
+        length_terms = [b.AddNamedSystem(name, system) for name, system in
+                        (("stretch_positive", Saturation(*positive)), ("kp", Gain(self.kp)))]
+        velocity_terms = [b.AddNamedSystem(name, system) for name, system in
+                          (("lengthening", Saturation(*positive)), ("kv", Gain(self.kv)))]
+        b.Connect(stretch.get_output_port(), length_terms[0].get_input_port())
+        total = b.AddNamedSystem("feedback", Adder(2, n))
+        for k, (first, second) in enumerate((length_terms, velocity_terms)):
+            b.Connect(first.get_output_port(), second.get_input_port())
+            b.Connect(second.get_output_port(), total.get_input_port(k))
+        b.ExportInput(stretch.get_input_port(0), "normalized_fiber_length")
+        b.ExportInput(velocity_terms[0].get_input_port(), "normalized_fiber_velocity")
+        b.ExportOutput(total.get_output_port(), "feedback")
+        b.BuildInto(self)
 
     def feedback(self, norm_length, norm_velocity) -> np.ndarray:
         return self.kp * np.maximum(norm_length - self.l_desired, 0.0) + self.kv * np.maximum(norm_velocity, 0.0)
 
-    def _calc(self, context, output):
-        output.SetFromVector(self.feedback(self._ln.Eval(context), self._vn.Eval(context)))
 
-
-class ExcitationMixer(LeafSystem):
+class ExcitationMixer(Diagram):
     """Excitation u = clip(feed-forward + sum of feedback channels, u_min, 1).
 
     Inputs ``feedforward`` and ``feedback_0`` ... ``feedback_{k-1}`` (n each); output ``excitation``.
@@ -54,12 +70,11 @@ class ExcitationMixer(LeafSystem):
     def __init__(self, n: int, n_feedback: int, min_excitation: float = 0.01):
         super().__init__()
         self.min_excitation = float(min_excitation)
-        self._ff = self.DeclareVectorInputPort("feedforward", n)
-        self._fb = [self.DeclareVectorInputPort(f"feedback_{k}", n) for k in range(n_feedback)]
-        self.DeclareVectorOutputPort("excitation", n, self._calc)
-
-    def _calc(self, context, output):
-        u = self._ff.Eval(context).copy()
-        for port in self._fb:
-            u += port.Eval(context)
-        output.SetFromVector(np.clip(u, self.min_excitation, 1.0))
+        b = DiagramBuilder()
+        total = b.AddNamedSystem("sum", Adder(1 + n_feedback, n))
+        clip = b.AddNamedSystem("clip", Saturation(np.full(n, self.min_excitation), np.ones(n)))
+        b.Connect(total.get_output_port(), clip.get_input_port())
+        for k, name in enumerate(["feedforward", *(f"feedback_{j}" for j in range(n_feedback))]):
+            b.ExportInput(total.get_input_port(k), name)
+        b.ExportOutput(clip.get_output_port(), "excitation")
+        b.BuildInto(self)
