@@ -187,7 +187,7 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
     pert = None
     if pelvis_mode == "prescribed":
         direction = _anterior_direction(base)
-        pert = builder.AddNamedSystem("perturbation", PrescribedPelvisMotion(plant, perturbation, direction))
+        pert = builder.AddNamedSystem("perturbation", PrescribedPelvisMotion(base, perturbation, direction))
         builder.Connect(plant.get_state_output_port(), pert.GetInputPort("plant_state"))
         forces.append(pert.GetOutputPort("generalized_force"))
     elif pelvis_mode == "force":

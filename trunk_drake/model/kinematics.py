@@ -66,7 +66,16 @@ class TreeKinematics:
         self._X_FM = np.array([r[4] for r in rows]).reshape(-1, 3, 4)
         self._axis = np.array([r[5] for r in rows]).reshape(-1, 3)
         self._X_MB = np.array([r[6] for r in rows]).reshape(-1, 3, 4)
+        self.moves = np.zeros((n_bodies, plant.num_positions()))  # 1 where coordinate k moves body b
+        for b, (parent, kind, q_index, *_) in zip(order, rows):
+            self.moves[b] = self.moves[parent]
+            if kind != WELD:
+                self.moves[b, q_index] = 1.0
+        bodies = [plant.get_body(BodyIndex(b)) for b in range(n_bodies)]
+        self._mass = np.array([b.default_mass() for b in bodies], dtype=float)
+        self._com = np.array([b.default_com() for b in bodies], dtype=float).reshape(-1, 3)
         joints = [plant.GetJointByName(name) for name in coordinates]
+        self._revolute = np.array([j.type_name() == "revolute" for j in joints], dtype=np.bool_)
         frames = [j.frame_on_child().GetFixedPoseInBodyFrame() for j in joints]
         self.joint_body = np.array([int(j.frame_on_child().body().index()) for j in joints], dtype=np.int64)
         self._joint_axis = np.array([X.rotation().matrix() @ np.asarray(j.revolute_axis() if j.type_name() == "revolute"
@@ -85,6 +94,13 @@ class TreeKinematics:
         R, p = self.poses(q)
         axes, origins = _joint_frames(R, p, self.joint_body, self._joint_axis, self._joint_anchor)
         return R, p, axes, origins
+
+    def mass_weighted_com_jacobian(self, q, direction) -> np.ndarray:
+        """``M J_com^T d`` (n_coords,): the sum over bodies of m_b (d . dc_b/dq), with J_com the Jacobian
+        of the centre of mass' velocity w.r.t. the generalized velocities (= qdot here) and d a world direction."""
+        R, p, axes, origins = self.frames(q)
+        return _com_direction(R, p, axes, origins, self._revolute, self.moves, self._mass, self._com,
+                              np.asarray(direction, dtype=float))
 
 
 @numba.njit(cache=True)
@@ -144,3 +160,22 @@ def _poses(q, n_bodies, body, parent, kind, q_index, X_PF, X_FM, axis, X_MB):
         _compose(RF, pF, X, RM, pM)
         _compose(RM, pM, X_MB[j], R[body[j]], p[body[j]])
     return R, p
+
+
+@numba.njit(cache=True)
+def _com_direction(R, p, axes, origins, revolute, moves, mass, com_B, d):
+    out = np.zeros(axes.shape[0])
+    for b in range(mass.shape[0]):
+        if mass[b] == 0.0:
+            continue
+        c = R[b] @ com_B[b] + p[b]
+        for k in range(axes.shape[0]):
+            if moves[b, k] == 0.0:
+                continue
+            a = axes[k]
+            if revolute[k]:  # d . (a x (c - o))
+                r0, r1, r2 = c[0] - origins[k, 0], c[1] - origins[k, 1], c[2] - origins[k, 2]
+                out[k] += mass[b] * (d[0] * (a[1] * r2 - a[2] * r1) + d[1] * (a[2] * r0 - a[0] * r2) + d[2] * (a[0] * r1 - a[1] * r0))
+            else:
+                out[k] += mass[b] * (d[0] * a[0] + d[1] * a[1] + d[2] * a[2])
+    return out

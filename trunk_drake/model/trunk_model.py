@@ -6,7 +6,7 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from pydrake.multibody.tree import BodyIndex, JointIndex
+from pydrake.multibody.tree import BodyIndex
 
 from trunk_drake.model.architecture import with_hill_parameters
 from trunk_drake.model.kinematics import TreeKinematics
@@ -89,6 +89,10 @@ class TrunkModel:
         R, p, axes, origins = self._kinematics.frames(q)
         return self._paths.compute(R, p, axes, origins, v)
 
+    def mass_weighted_com_jacobian(self, q, direction) -> np.ndarray:
+        """``M J_com^T d`` at q (unchecked): the generalized force of a unit acceleration field along world direction d, negated."""
+        return self._kinematics.mass_weighted_com_jacobian(q, direction)
+
     def path_state(self, q, v=None) -> PathState:
         """Lengths (m), moment arms (m or m/rad, = -dL/dq) and, with v, lengthening velocities."""
         q = self.check_q(q)
@@ -110,17 +114,11 @@ class TrunkModel:
 
 def _build(spec: ModelSpec, dofs: str, pelvis_mass: float | None, pelvis_free: bool) -> TrunkModel:
     plant, coords = build_plant(spec, dofs, pelvis_mass=pelvis_mass, pelvis_free=pelvis_free)
-    n_bodies = plant.num_bodies()
-    moves = np.zeros((n_bodies, len(coords)))
-    for k, c in enumerate(coords):
-        joint = plant.GetJointByName(c.name)
-        for b in plant.GetBodiesKinematicallyAffectedBy([JointIndex(int(joint.index()))]):
-            moves[int(b), k] = 1.0
-    names = [plant.get_body(_body_index(i)).name() for i in range(n_bodies)]
-    paths = MusclePaths(spec, names, [c.kind for c in coords], moves)
-    model = TrunkModel(spec=spec, dofs=dofs, pelvis_free=pelvis_free, pelvis_mass=pelvis_mass, plant=plant, coordinate_info=coords,
-                       _paths=paths, _kinematics=TreeKinematics(plant, [c.name for c in coords]))
-    return model
+    kinematics = TreeKinematics(plant, [c.name for c in coords])
+    names = [plant.get_body(_body_index(i)).name() for i in range(plant.num_bodies())]
+    paths = MusclePaths(spec, names, [c.kind for c in coords], kinematics.moves)
+    return TrunkModel(spec=spec, dofs=dofs, pelvis_free=pelvis_free, pelvis_mass=pelvis_mass, plant=plant, coordinate_info=coords,
+                      _paths=paths, _kinematics=kinematics)
 
 
 def _body_index(i: int) -> BodyIndex:

@@ -23,22 +23,23 @@ class Memo:
         self.key, self.value = None, None
 
 
-def _same(key, last) -> bool:
-    if key is last:
-        return True
-    return isinstance(key, np.ndarray) and isinstance(last, np.ndarray) and np.array_equal(key, last)
+def _comparable(key):
+    """Arrays compare by value (their bytes), anything else by identity (the object itself is kept)."""
+    return key.tobytes() if isinstance(key, np.ndarray) else key
 
 
 def declare_memo(system, description: str, key, compute, prerequisites):
-    """Declare a cache entry of `system` whose ``Eval(context)`` returns ``compute(context)``,
+    """Declare a cache entry of `system` whose ``Eval(context)`` returns ``compute(context, key(context))``,
     recomputed only when ``key(context)`` differs from the key of the last computation."""
 
     def calc(context, value):
         memo = value.get_mutable_value()
         k = key(context)
-        if memo.key is None or not _same(k, memo.key):
-            memo.value = compute(context)
-            memo.key = k.copy() if isinstance(k, np.ndarray) else k
+        comparable = _comparable(k)
+        same = memo.key == comparable if isinstance(comparable, bytes) else memo.key is comparable
+        if not same or memo.value is None:
+            memo.value = compute(context, k)
+            memo.key = comparable
 
     entry = system.DeclareCacheEntry(description, ValueProducer(allocate=lambda: AbstractValue.Make(Memo()), calc=calc),
                                      prerequisites)

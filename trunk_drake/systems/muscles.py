@@ -62,8 +62,8 @@ class MuscleSystem(LeafSystem):
         self._u = self.DeclareVectorInputPort("excitation", n)
         self._path = self.DeclareAbstractInputPort("path_state", AbstractValue.Make(empty_path_state(model)))
         self._kin = declare_memo(self, "rigid-tendon fiber kinematics", self._path.Eval,  # the path object: by identity
-                                 lambda c: thelen.rigid_kinematics(self._path.Eval(c).lengths, self._path.Eval(c).velocities,
-                                                                   self.params, self.constants), {self._path.ticket()})
+                                 lambda c, path: thelen.rigid_kinematics(path.lengths, path.velocities, self.params, self.constants),
+                                 {self._path.ticket()})
         state_and_path = {self.all_state_ticket(), self._path.ticket()}
         template = thelen.rigid_tendon(self._x0[:n], self.params.tendon_slack_length + self.params.optimal_fiber_length, 0.0, self.params, self.constants)
         self._state_port = self.DeclareAbstractOutputPort(

@@ -4,10 +4,7 @@
 from __future__ import annotations
 
 import numpy as np
-from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import LeafSystem
-
-from trunk_drake.systems.memo import declare_memo
 
 
 class PrescribedPelvisMotion(LeafSystem):
@@ -15,34 +12,24 @@ class PrescribedPelvisMotion(LeafSystem):
     translating frame, where every body feels the inertial force -m_i a_platform(t).
 
     Their sum is the generalized force ``-a(t) M J_com^T d`` (M total mass, J_com the
-    centre-of-mass Jacobian, d the world direction of motion). Input ``plant_state``;
-    output ``generalized_force``.
+    centre-of-mass Jacobian, d the world direction of motion; compiled, from the model's body
+    kinematics). Input ``plant_state``; output ``generalized_force``.
     """
 
-    def __init__(self, plant, signal, direction):
+    def __init__(self, model, signal, direction):
         super().__init__()
-        self._plant, self._signal = plant, signal
+        self._model, self._signal = model, signal
         self._dir = np.asarray(direction, dtype=float)
-        self._scratch = plant.CreateDefaultContext()  # a workspace, fully set before every use
-        self._mass = plant.CalcTotalMass(self._scratch)
-        self._nq, nv = plant.num_positions(), plant.num_velocities()
+        self._nq, nv = model.plant.num_positions(), model.plant.num_velocities()
         self._state = self.DeclareVectorInputPort("plant_state", self._nq + nv)
-        self._com_dir = declare_memo(self, "M J_com^T d", lambda c: self._state.Eval(c)[: self._nq], self._calc_com_dir,
-                                     {self._state.ticket()})
-        self.DeclareVectorOutputPort("generalized_force", nv, self._calc_force,
-                                     prerequisites_of_calc={self.time_ticket(), self._com_dir.ticket()})
-
-    def _calc_com_dir(self, context) -> np.ndarray:
-        q = self._state.Eval(context)[: self._nq]
-        if not np.all(np.isfinite(q)):  # Drake would abort on non-finite positions
-            raise RuntimeError(f"non-finite pelvis-frame positions at t={context.get_time():.6g} s: {q}")
-        plant, scratch, world = self._plant, self._scratch, self._plant.world_frame()
-        plant.SetPositions(scratch, q)
-        J = plant.CalcJacobianCenterOfMassTranslationalVelocity(scratch, JacobianWrtVariable.kV, world, world)
-        return self._mass * (J.T @ self._dir)
+        self.DeclareVectorOutputPort("generalized_force", nv, self._calc_force)
 
     def _calc_force(self, context, output):
-        output.SetFromVector(-self._signal.evaluate(context.get_time())[2] * self._com_dir.Eval(context))
+        q = self._state.Eval(context)[: self._nq]
+        if not np.isfinite(q.sum()):  # any NaN or inf
+            raise RuntimeError(f"non-finite pelvis-frame positions at t={context.get_time():.6g} s: {q}")
+        acceleration = self._signal.evaluate(context.get_time())[2]
+        output.SetFromVector(-acceleration * self._model.mass_weighted_com_jacobian(q, self._dir))
 
 
 class PelvisForcePerturbation(LeafSystem):
