@@ -1,7 +1,7 @@
 """Benchmark: lengths + moment arms of all 210 MyoTorso muscles at one pose; prints JSON.
 
-Ours: `TrunkModel.path_state(q)` (sets q in the Drake context, reads body poses, vectorised
-paths). MuJoCo (same model, same pose): mj_kinematics + mj_comPos + mj_tendon + mj_transmission.
+Ours: `TrunkModel.path_state(q)` (compiled body kinematics and vectorised paths, one numba call each).
+MuJoCo (same model, same pose): mj_kinematics + mj_comPos + mj_tendon + mj_transmission.
 """
 
 import json

@@ -13,8 +13,9 @@ unit segment direction dotted with the difference of the end-point Jacobians, wh
 wrap tangent points move with the wrap surface's body; for a taut (shortest) path the
 wrapped arc contributes nothing to first order.
 
-The kernel is compiled with numba (one pass over sites, wraps and segments, ~20 us for
-210 muscles); everything else here is set-up.
+The kernel is compiled with numba (one pass over sites, wraps and segments; a segment adds
+to the moment arm of a joint only when the joint moves one end and not the other); everything
+else here is set-up. Body poses come from `trunk_drake.model.kinematics`.
 """
 
 from __future__ import annotations

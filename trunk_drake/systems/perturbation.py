@@ -39,7 +39,7 @@ class PelvisForcePerturbation(LeafSystem):
     def __init__(self, nv: int, pelvis_index: int, signal, pelvis_mass: float):
         super().__init__()
         self._signal, self._nv, self._i, self._mass = signal, nv, pelvis_index, float(pelvis_mass)
-        self.DeclareVectorOutputPort("generalized_force", nv, self._calc_force, prerequisites_of_calc={self.time_ticket()})
+        self.DeclareVectorOutputPort("generalized_force", nv, self._calc_force)
 
     def _calc_force(self, context, output):
         tau = np.zeros(self._nv)
