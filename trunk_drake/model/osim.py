@@ -30,6 +30,7 @@ import warnings
 import xml.etree.ElementTree as ET
 from collections import defaultdict
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -229,35 +230,51 @@ class _Reader:
         return els
 
     def _offset_frames(self, joints_el):
-        """PhysicalOffsetFrames of 4.x joints and of the model's components."""
-        pending = [f for el in joints_el for f in el.findall("frames/PhysicalOffsetFrame")]
-        pending += self.model.findall("components/PhysicalOffsetFrame")
+        """PhysicalOffsetFrames of the model's and bodies' components and of 4.x joints.
+
+        Joint frames are known by their path ``jointset/<joint>/<frame>`` (frame names repeat
+        across joints); the others by their name.
+        """
+        pending = [(f.get("name"), f) for f in self.model.findall("components/PhysicalOffsetFrame")]
         for body in self.body_els.values():
-            pending += body.findall("components/PhysicalOffsetFrame")
+            pending += [(f.get("name"), f) for f in body.findall("components/PhysicalOffsetFrame")]
+        for el in joints_el:
+            pending += [(f"jointset/{el.get('name')}/{f.get('name')}", f) for f in el.findall("frames/PhysicalOffsetFrame")]
         for _ in range(len(pending) + 1):
             left = []
-            for f in pending:
+            for key, f in pending:
                 parent = _last(_text(f, "socket_parent"))
                 if parent not in self.frames:
-                    left.append(f)
+                    left.append((key, f))
                     continue
                 body, X = self.frames[parent]
-                self.frames[f.get("name")] = (body, X * _Pose(xyz_body_fixed(_vec(f, "orientation")), _vec(f, "translation")))
+                self.frames[key] = (body, X * _Pose(xyz_body_fixed(_vec(f, "orientation")), _vec(f, "translation")))
             pending = left
-        for f in pending:
-            self.warn.add("PhysicalOffsetFrame without a known parent", f.get("name", "?"), "ignored")
+        for key, _ in pending:
+            self.warn.add("PhysicalOffsetFrame without a known parent", key, "ignored")
 
     def _frame(self, name, where) -> tuple[str, _Pose]:
         if name not in self.frames:
             raise OsimError(f"{self.path}: {where} refers to frame {name!r}, which the model does not define")
         return self.frames[name]
 
+    def _socket_frame(self, path: str | None, joint: str | None, where: str) -> tuple[str, _Pose]:
+        """The frame a socket path names: a joint's own frame, a body, ground or a named frame."""
+        if path is None:
+            raise OsimError(f"{self.path}: {where} has no frame")
+        parts = [p for p in path.strip().split("/") if p not in ("", ".", "..")]
+        if joint is not None and len(parts) == 1 and f"jointset/{joint}/{parts[0]}" in self.frames:
+            return self.frames[f"jointset/{joint}/{parts[0]}"]
+        if len(parts) >= 3 and parts[-3] == "jointset":
+            return self._frame("/".join(parts[-3:]), where)
+        return self._frame(parts[-1], where)
+
     def _joint(self, el):
         """(child, parent, X_PB at zero displacements, axis JointSpecs, CoordinateSpecs) or None."""
         name = el.get("name", "?")
         if self.version >= 30000 and el.find("socket_parent_frame") is not None:
-            parent, X_PF = self._frame(_last(_text(el, "socket_parent_frame")), f"joint {name}")
-            child, X_BM = self._frame(_last(_text(el, "socket_child_frame")), f"joint {name}")
+            parent, X_PF = self._socket_frame(_text(el, "socket_parent_frame"), name, f"joint {name}")
+            child, X_BM = self._socket_frame(_text(el, "socket_child_frame"), name, f"joint {name}")
         else:
             parent = _last(_text(el, "parent_body"))
             child = self._owner_body(el)
@@ -495,14 +512,15 @@ class _Reader:
         for key, values in constants.items():
             if len(values) > 1:
                 self.warn.add(f"per-muscle Thelen constant {key}", ", ".join(f"{v:g}" for v in sorted(values)),
-                              f"every muscle uses the most negative-free first value {sorted(values)[0]:g}")
+                              f"every muscle uses the smallest, {sorted(values)[0]:g}")
             shared[key] = sorted(values)[0]
         return sites, muscles, shared
 
     def _path_point(self, p, where) -> SiteSpec:
         name = p.get("name", "")
-        frame = _last(_text(p, "socket_parent_frame")) or _last(_text(p, "body"))
-        body, X = self._frame(frame, f"{where} path point {name}")
+        socket = _text(p, "socket_parent_frame")
+        where = f"{where} path point {name}"
+        body, X = self._socket_frame(socket, None, where) if socket else self._frame(_last(_text(p, "body")), where)
         condition = motion = None
         if p.tag == "ConditionalPathPoint":
             rng = _floats(_text(p, "range", "0 0"))
@@ -533,19 +551,72 @@ def _quadrant(text, path, name) -> str:
 
 
 def attach_fixed_roots(spec: ModelSpec, pelvis: str) -> ModelSpec:
-    """Weld every other ground-welded body to `pelvis` (when the pelvis is welded to ground)."""
-    moving_roots = {j.body for j in spec.joints if j.coordinate is not None}
+    """Weld every other ground-welded body to `pelvis` when the pelvis is welded to ground too."""
+    jointed = {j.body for j in spec.joints}
     by_name = {b.name: b for b in spec.bodies}
-    if pelvis not in by_name or by_name[pelvis].parent is not None or pelvis in moving_roots:
+    if by_name[pelvis].parent is not None or pelvis in jointed:
         return replace(spec, pelvis=pelvis)
     X_WP = _Pose(quat_matrix(by_name[pelvis].quat), np.asarray(by_name[pelvis].pos))
     bodies = []
     for b in spec.bodies:
-        if b.parent is None and b.name != pelvis and b.name not in moving_roots and not any(j.body == b.name for j in spec.joints):
+        if b.parent is None and b.name != pelvis and b.name not in jointed:
             X = X_WP.inverse() * _Pose(quat_matrix(b.quat), np.asarray(b.pos))
             b = replace(b, parent=pelvis, pos=X.p, quat=matrix_quat(X.R))
         bodies.append(b)
-    names = [b.name for b in bodies]
-    # keep parents before children
-    order = sorted(range(len(bodies)), key=lambda i: (bodies[i].parent is not None, bodies[i].name != pelvis))
-    return replace(spec, bodies=tuple(bodies[i] for i in order) if names.index(pelvis) > 0 else tuple(bodies), pelvis=pelvis)
+    return replace(spec, bodies=tuple(bodies), pelvis=pelvis)
+
+
+# ------------------------------------------------------------------------------ model mapping
+
+def mapping_for(model_name: str) -> dict:
+    """The mapping file `models/osim/<model name>.toml`, or {} when there is none."""
+    from trunk_drake.data import load_toml, models_dir
+
+    name = f"osim/{model_name}.toml"
+    return load_toml(name) if (models_dir() / name).is_file() else {}
+
+
+def load_osim_spec(path, mapping: dict | None = None) -> ModelSpec:
+    """An .osim file as a ModelSpec ready for `load_model`: lumbar levels, pelvis, groups, landmarks.
+
+    `mapping` defaults to the model's file in ``models/osim/`` (see Lumbar_C_210.toml); without
+    one, the levels are the bodies lumbar5 ... lumbar1 where they exist, and muscles take the
+    thesis' groups by name prefix where one matches (else group "other").
+    """
+    path = Path(path)
+    key = (str(path.resolve()), path.stat().st_mtime_ns if path.is_file() else 0)
+    return _load_osim_spec(key, path, None if mapping is None else tuple(sorted(mapping.items())))
+
+
+@lru_cache(maxsize=8)
+def _load_osim_spec(key, path, mapping_items) -> ModelSpec:
+    from trunk_drake.data import load_toml
+    from trunk_drake.model.architecture import muscle_group_of
+
+    spec = read_osim(path)
+    mapping = dict(mapping_items) if mapping_items is not None else mapping_for(spec.name)
+    names = {b.name for b in spec.bodies}
+    levels = mapping.get("levels", {})
+    level_bodies = tuple(levels.get(level, f"lumbar{5 - i}") for i, level in enumerate(("L5_S1", "L4_L5", "L3_L4", "L2_L3", "L1_L2")))
+    if not set(level_bodies) <= names:
+        level_bodies = ()
+    pelvis = spec.body(level_bodies[0]).parent if level_bodies else next(b.name for b in spec.bodies if b.parent is None)
+    spec = replace(attach_fixed_roots(spec, pelvis), level_bodies=level_bodies)
+    groups_table = load_toml(mapping.get("groups", {}).get("file", "muscle_groups.toml"))
+    muscles = []
+    for m in spec.muscles:
+        try:
+            group = muscle_group_of(m.name, groups_table)
+        except ValueError:
+            group = "other"
+        muscles.append(replace(m, group=group))
+    if not mapping and any(m.group == "other" for m in muscles):
+        warnings.warn(f"{path}: no mapping file models/osim/{spec.name}.toml; "
+                      f"{sum(m.group == 'other' for m in muscles)} muscles match no thesis group and form group 'other'",
+                      stacklevel=3)
+    landmarks = ()
+    if mapping.get("landmarks", {}).get("from") == "myotorso":
+        from trunk_drake.model.myotorso import read_myotorso
+
+        landmarks = read_myotorso().landmarks
+    return replace(spec, muscles=tuple(muscles), landmarks=landmarks)

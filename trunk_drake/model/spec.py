@@ -3,7 +3,8 @@
 No Drake or MuJoCo objects live here: every engine (the Drake plant, the MuJoCo
 oracle, an OpenSim export) is built from these dataclasses. Frames follow MuJoCo's
 conventions: a body's pose is given relative to its parent at zero joint angles,
-joints act about axes expressed in the child body frame, and the world is z-up.
+joints act about axes expressed in the child body frame, and "up" is minus `gravity`
+(z for MyoTorso, y for OpenSim files).
 Inside each body the OpenSim lumbar-model axes are kept: x anterior, y superior,
 z to the right.
 """
@@ -174,6 +175,7 @@ class ModelSpec:
     couplers: tuple[CouplerSpec, ...] = ()  # OpenSim models: coordinate coupler constraints
     path_semantics: str = "mujoco"  # "mujoco" or "opensim": how `MuscleSpec.path` wraps
     pelvis: str = "sacrum"  # the body carrying the lowest lumbar joint (root of the spine)
+    level_bodies: tuple[str, ...] = ()  # OpenSim models: child vertebra of each lumbar level, L5/S1 first
     muscle_constants: dict = field(default_factory=dict)  # shared Thelen constants read from the source
 
     def body(self, name: str) -> BodySpec:

@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from pydrake.multibody.tree import BodyIndex, JointIndex
 
 from trunk_drake.model.architecture import with_hill_parameters
 from trunk_drake.model.myotorso import read_myotorso
+from trunk_drake.model.osim import load_osim_spec
+from trunk_drake.model.osim_kinematics import OsimKinematics
 from trunk_drake.model.paths import MusclePaths, PathState
 from trunk_drake.model.plant import DOFS, Coordinate, build_plant
 from trunk_drake.model.spec import ModelSpec
@@ -29,7 +32,7 @@ class TrunkModel:
     pelvis_mass: float | None
     plant: object
     coordinate_info: list[Coordinate]
-    _paths: MusclePaths = field(repr=False)
+    _paths: MusclePaths | OsimKinematics = field(repr=False)
     _context: object = field(repr=False)
     _warned: set = field(default_factory=set, repr=False)
 
@@ -94,7 +97,45 @@ class TrunkModel:
         Rj = R[self._joint_body]
         axes = (Rj @ self._joint_axis[:, :, None])[:, :, 0]
         origins = (Rj @ self._joint_anchor[:, :, None])[:, :, 0] + p[self._joint_body]
+        if isinstance(self._paths, OsimKinematics):
+            return self._paths.path_state(R, p, axes, origins, plant.GetPositions(context), v)
         return self._paths.compute(R, p, axes, origins, v)
+
+    # ---- OpenSim models: the file's own coordinates --------------------------------------
+    def _osim(self) -> OsimKinematics:
+        if not isinstance(self._paths, OsimKinematics):
+            raise ValueError(f"model {self.spec.name!r} was not read from an OpenSim file; it has no source coordinates")
+        return self._paths
+
+    def source_coordinates(self, q) -> dict[str, float]:
+        """The OpenSim model's own coordinates (its names, signs and units: rad, m) at q."""
+        values = self._osim().coordinate_values(self.check_q(q, check_range=False))
+        return dict(zip(self._osim().source.names, map(float, values)))
+
+    def q_from_source(self, values: dict[str, float]) -> np.ndarray:
+        """Plant positions q from the OpenSim model's coordinate values (missing ones: defaults)."""
+        osim = self._osim()
+        q = np.zeros(len(self.coordinate_info))
+        for k, c in enumerate(self.coordinate_info):
+            if c.source_joint is None:
+                q[k] = values.get(c.name, 0.0)
+                continue
+            joint = self.spec.joint(c.source_joint)
+            value = values.get(joint.coordinate, osim.source.default[osim.source.index[joint.coordinate]])
+            q[k] = c.sign * float(joint.function.value(value))
+        return q
+
+    def source_moment_arms(self, q) -> dict[str, np.ndarray]:
+        """Moment arms (n_muscles,) about each plant coordinate's OpenSim coordinate (m or m/rad of it)."""
+        q = self.check_q(q)
+        values = self.source_coordinates(q)
+        arms = self.moment_arms(q)
+        out = {}
+        for k, c in enumerate(self.coordinate_info):
+            if c.source_joint is not None:
+                joint = self.spec.joint(c.source_joint)
+                out[joint.coordinate] = arms[:, k] * c.sign * float(joint.function.derivative(values[joint.coordinate]))
+        return out
 
     def path_state(self, q, v=None) -> PathState:
         """Lengths (m), moment arms (m or m/rad, = -dL/dq) and, with v, lengthening velocities."""
@@ -143,7 +184,10 @@ def _build(spec: ModelSpec, dofs: str, pelvis_mass: float | None, pelvis_free: b
         for b in plant.GetBodiesKinematicallyAffectedBy([JointIndex(int(joint.index()))]):
             moves[int(b), k] = 1.0
     names = [plant.get_body(_body_index(i)).name() for i in range(n_bodies)]
-    paths = MusclePaths(spec, names, [c.kind for c in coords], moves)
+    if spec.path_semantics == "opensim":
+        paths = OsimKinematics(spec, coords, names, moves)
+    else:
+        paths = MusclePaths(spec, names, [c.kind for c in coords], moves)
     model = TrunkModel(spec=spec, dofs=dofs, pelvis_free=pelvis_free, pelvis_mass=pelvis_mass, plant=plant, coordinate_info=coords, _paths=paths, _context=plant.CreateDefaultContext())
     model._init_joints()
     return model
@@ -153,17 +197,27 @@ def _body_index(i: int) -> BodyIndex:
     return BodyIndex(i)
 
 
-def load_model(dofs: str = "sagittal", spec: ModelSpec | None = None, pelvis_mass: float | None = None,
-               pelvis_free: bool = True) -> TrunkModel:
-    """The default MyoTorso trunk model in configuration `dofs` ("sagittal" or "spine3d").
+def load_model(model: str | Path | None = None, dofs: str | None = None, spec: ModelSpec | None = None,
+               pelvis_mass: float | None = None, pelvis_free: bool = True) -> TrunkModel:
+    """A trunk model in configuration `dofs` ("sagittal", "spine3d" or "all"; default "sagittal").
 
-    Hill fiber and tendon lengths are derived from the neutral-posture musculotendon lengths
-    by Christophy et al.'s method unless `spec` already carries them. `pelvis_mass` replaces
-    the sacrum's mass; ``pelvis_free=False`` welds the sagittal pelvis (no ``pelvis_tx``).
+    `model`: None or "myotorso" for the default MyoTorso model, or the path of an OpenSim
+    ``.osim`` file (read by `trunk_drake.model.osim`, mapped with its file in ``models/osim/``);
+    a configuration name in its place is read as `dofs` (``load_model("spine3d")``). Hill
+    fiber and tendon lengths are derived from the neutral-posture musculotendon lengths by
+    Christophy et al.'s method unless the spec carries them (OpenSim files do).
+    `pelvis_mass` replaces the pelvis' mass; ``pelvis_free=False`` welds the sagittal pelvis
+    (no ``pelvis_tx``).
     """
+    if model is not None and str(model) in DOFS:
+        if dofs is not None:
+            raise ValueError(f"load_model got configuration {model!r} and dofs={dofs!r}; give one")
+        model, dofs = None, str(model)
+    dofs = dofs or "sagittal"
     if dofs not in DOFS:
         raise ValueError(f"unknown configuration dofs={dofs!r}; expected one of {DOFS}")
-    spec = spec or read_myotorso()
+    if spec is None:
+        spec = read_myotorso() if model is None or str(model).lower() == "myotorso" else load_osim_spec(model)
     if any(np.isnan(m.optimal_fiber_length) for m in spec.muscles):
         geometric = _build(spec, "spine3d", None, False)
         neutral = geometric.path_state(np.zeros(len(geometric.coordinate_info))).lengths
