@@ -180,7 +180,7 @@ class _Reader:
         self.body_els = {b.get("name"): b for b in model.findall("BodySet/objects/Body")}
         for name in self.body_els:
             self.frames[name] = (name, _Pose())
-        ground = model.find("Ground")
+        ground = model.find("Ground") if model.find("Ground") is not None else model.find("ground")
         if ground is not None:
             self.frames[ground.get("name", "ground")] = ("ground", _Pose())
 
@@ -496,8 +496,9 @@ class _Reader:
                 path_wraps.append(PathWrapSpec(wrap_index[target], int(rng[0]), int(rng[1]), method if method in ("hybrid", "midpoint", "axial") else "hybrid"))
             if len(sites) - first < 2:
                 raise OsimError(f"{self.path}: muscle {name} has fewer than two path points")
-            for key, (props, default) in _THELEN_PROPERTIES.items():
-                constants[key].add(self._property(el, props, default))
+            if el.tag == "Thelen2003Muscle":
+                for key, (props, default) in _THELEN_PROPERTIES.items():
+                    constants[key].add(self._property(el, props, default))
             muscles.append(MuscleSpec(
                 name=name,
                 path=tuple(PathElement("site", i) for i in range(first, len(sites))),
@@ -514,7 +515,7 @@ class _Reader:
                 self.warn.add(f"per-muscle Thelen constant {key}", ", ".join(f"{v:g}" for v in sorted(values)),
                               f"every muscle uses the smallest, {sorted(values)[0]:g}")
             shared[key] = sorted(values)[0]
-        return sites, muscles, shared
+        return sites, muscles, shared or {key: default for key, (_, default) in _THELEN_PROPERTIES.items()}
 
     def _path_point(self, p, where) -> SiteSpec:
         name = p.get("name", "")

@@ -65,15 +65,48 @@ def level_axes(spec: ModelSpec, levels: tuple[str, ...], suffixes: tuple[str, ..
 
 
 def free_axes(spec: ModelSpec) -> list[AxisChoice]:
-    """``dofs="all"``: per unlocked coordinate, the first transform axis linear in it (q = its displacement)."""
+    """``dofs="all"``: per unlocked coordinate one transform axis it drives (q = that axis' displacement).
+
+    A linear axis is preferred; otherwise an axis monotonic in the coordinate over its range
+    (the coordinate then follows by inverting the function).
+    """
     out = []
     for c in spec.coordinates:
         if c.locked:
             continue
-        axes = [j for j in spec.joints if j.coordinate == c.name and _affine(j) is not None and _affine(j)[0] != 0.0]
-        if axes:
+        axes = [j for j in spec.joints if j.coordinate == c.name and not j.function.is_constant]
+        axes.sort(key=lambda j: _affine(j) is None)
+        if axes and (_affine(axes[0]) is not None or _monotonic(axes[0], c.range)):
             out.append(AxisChoice(c.name, axes[0], 1.0))
     return out
+
+
+def _monotonic(joint: JointSpec, rng) -> bool:
+    lo, hi = max(rng[0], -_HUGE_RANGE), min(rng[1], _HUGE_RANGE)
+    slope = joint.function.derivative(np.linspace(lo, hi, 401))
+    return bool(np.all(slope > 0) or np.all(slope < 0))
+
+
+def _inverse(function, value: float, lo: float, hi: float) -> float:
+    """x with function(x) = value for a monotonic function (bisection refined by Newton)."""
+    f_lo, f_hi = float(function.value(lo)) - value, float(function.value(hi)) - value
+    while f_lo * f_hi > 0:  # widen the bracket (the functions extrapolate linearly)
+        width = hi - lo
+        lo, hi = lo - width, hi + width
+        f_lo, f_hi = float(function.value(lo)) - value, float(function.value(hi)) - value
+    x = 0.5 * (lo + hi)
+    for _ in range(200):
+        fx = float(function.value(x)) - value
+        if fx == 0.0 or hi - lo < 1e-15 * max(1.0, abs(x)):
+            break
+        if (fx < 0) == (f_lo < 0):
+            lo, f_lo = x, fx
+        else:
+            hi = x
+        slope = float(function.derivative(x))
+        newton = x - fx / slope if slope != 0.0 else np.nan
+        x = newton if lo < newton < hi else 0.5 * (lo + hi)
+    return x
 
 
 def _affine(joint: JointSpec):
@@ -90,11 +123,7 @@ class SourceCoordinates:
         self.nq = len(choices)
         self.default = np.array([c.default for c in spec.coordinates], dtype=float)
         # free coordinates: c = (sign * q - intercept) / slope  (q = sign * (slope c + intercept))
-        self.free = {}
-        for k, ch in enumerate(choices):
-            if ch is not None:
-                slope, intercept = _affine(ch.joint)
-                self.free[ch.joint.coordinate] = (k, slope, intercept, ch.sign)
+        self.free = {ch.joint.coordinate: (k, ch) for k, ch in enumerate(choices) if ch is not None}
         self.couplers = self._coupler_order()
         self.moving = self._moving_coordinates()
 
@@ -124,10 +153,16 @@ class SourceCoordinates:
         q = np.asarray(q, dtype=float)
         c = self.default.copy()
         dc = np.zeros((len(self.names), self.nq))
-        for name, (k, slope, intercept, sign) in self.free.items():
+        for name, (k, ch) in self.free.items():
             i = self.index[name]
-            c[i] = (sign * q[k] - intercept) / slope
-            dc[i, k] = sign / slope
+            form = _affine(ch.joint)
+            if form is not None:
+                c[i] = (ch.sign * q[k] - form[1]) / form[0]
+                dc[i, k] = ch.sign / form[0]
+            else:
+                lo, hi = self.spec.coordinate(name).range
+                c[i] = _inverse(ch.joint.function, ch.sign * q[k], max(lo, -_HUGE_RANGE), min(hi, _HUGE_RANGE))
+                dc[i, k] = ch.sign / float(ch.joint.function.derivative(c[i]))
         for cp in self.couplers:
             i, j = self.index[cp.dependent], self.index[cp.independent]
             c[i] = cp.scale * float(cp.function.value(c[j]))

@@ -69,47 +69,65 @@ class OsimKinematics:
         parents = {self.spec.body(f).parent for f in self._follower_bodies} - {None}
         return self.paths.bodies_used() | {self._body_index[b] for b in moved | parents}
 
-    def _repose(self, R, p, joint_axes, joint_origins, q, c):
-        """Move follower bodies (and their subtrees) to their true poses; axes of follower joints."""
-        nf = len(self.followers)
-        f_axes, f_origins = np.zeros((nf, 3)), np.zeros((nf, 3))
+    def repose(self, R, p, q):
+        """Body poses with follower bodies (and their subtrees) moved to their true poses (copies)."""
+        if not self._follower_bodies:
+            return R, p
+        R, p = R.copy(), p.copy()
+        c, _ = self.source.values(q)
         for name in self._follower_bodies:
-            body = self.spec.body(name)
-            if body.parent is None:
-                Rx, px = np.eye(3), np.zeros(3)
-            else:
-                ip = self._body_index[body.parent]
-                Rx, px = R[ip], p[ip]
-            px = Rx @ body.pos + px
-            Rx = Rx @ quat_matrix(body.quat)
-            for j in self.spec.joints:
-                if j.body != name:
-                    continue
-                if j.name in self._plant_joints:
-                    k = self._plant_joints[j.name]
-                    value = q[k] / self._coords[k].sign
-                elif j.name in self._follower_index:
-                    value = float(j.function.value(c[self.source.index[j.coordinate]]))
-                else:
-                    value = self._fixed[j.name]
-                axis_w, origin_w = Rx @ j.axis, Rx @ j.anchor + px
-                if j.name in self._follower_index:
-                    f_axes[self._follower_index[j.name]], f_origins[self._follower_index[j.name]] = axis_w, origin_w
-                elif j.name in self._plant_joints:
-                    k = self._plant_joints[j.name]
-                    joint_axes[k], joint_origins[k] = self._coords[k].sign * axis_w, origin_w
-                if j.kind == "slide":
-                    px = px + axis_w * value
-                else:
-                    Rj = _rotation(axis_w, value)
-                    px = origin_w + Rj @ (px - origin_w)
-                    Rx = Rj @ Rx
+            Rx, px, _ = self._walk(name, R, p, q, c)
             ib = self._body_index[name]
             dR = Rx @ R[ib].T
             dp = px - dR @ p[ib]
             for other in self._subtree[name]:
                 i = self._body_index[other]
                 R[i], p[i] = dR @ R[i], dR @ p[i] + dp
+        return R, p
+
+    def _walk(self, name, R, p, q, c):
+        """Pose of body `name` from its parent's pose through each of its joints, and each joint's
+        world (axis, origin) on the way."""
+        body = self.spec.body(name)
+        if body.parent is None:
+            Rx, px = np.eye(3), np.zeros(3)
+        else:
+            ip = self._body_index[body.parent]
+            Rx, px = R[ip], p[ip]
+        px = Rx @ body.pos + px
+        Rx = Rx @ quat_matrix(body.quat)
+        axes = {}
+        for j in self.spec.joints:
+            if j.body != name:
+                continue
+            if j.name in self._plant_joints:
+                k = self._plant_joints[j.name]
+                value = q[k] / self._coords[k].sign
+            elif j.name in self._follower_index:
+                value = float(j.function.value(c[self.source.index[j.coordinate]]))
+            else:
+                value = self._fixed[j.name]
+            axis_w, origin_w = Rx @ j.axis, Rx @ j.anchor + px
+            axes[j.name] = (axis_w, origin_w)
+            if j.kind == "slide":
+                px = px + axis_w * value
+            else:
+                Rj = _rotation(axis_w, value)
+                px = origin_w + Rj @ (px - origin_w)
+                Rx = Rj @ Rx
+        return Rx, px, axes
+
+    def _follower_axes(self, R, p, joint_axes, joint_origins, q, c):
+        """World axes of the follower joints; plant joints on follower bodies get theirs too."""
+        nf = len(self.followers)
+        f_axes, f_origins = np.zeros((nf, 3)), np.zeros((nf, 3))
+        for name in self._follower_bodies:
+            for joint, (axis_w, origin_w) in self._walk(name, R, p, q, c)[2].items():
+                if joint in self._follower_index:
+                    f_axes[self._follower_index[joint]], f_origins[self._follower_index[joint]] = axis_w, origin_w
+                elif joint in self._plant_joints:
+                    k = self._plant_joints[joint]
+                    joint_axes[k], joint_origins[k] = self._coords[k].sign * axis_w, origin_w
         return f_axes, f_origins
 
     def coordinate_values(self, q) -> np.ndarray:
@@ -117,11 +135,9 @@ class OsimKinematics:
         return self.source.values(q)[0]
 
     def path_state(self, R, p, joint_axes, joint_origins, q, v=None) -> PathState:
-        """PathState at body poses R, p (from the plant) and plant positions q (and velocities v)."""
+        """PathState at re-posed body poses R, p (see `repose`), plant joint axes and positions q."""
         c, dc = self.source.values(q)
-        R, p = R.copy(), p.copy()
-        joint_axes, joint_origins = joint_axes.copy(), joint_origins.copy()
-        f_axes, f_origins = self._repose(R, p, joint_axes, joint_origins, q, c)
+        f_axes, f_origins = self._follower_axes(R, p, joint_axes, joint_origins, q, c)
         site_local = site_active = site_dw = None
         if self._conditional:
             site_active = np.ones(len(self.spec.sites), dtype=bool)

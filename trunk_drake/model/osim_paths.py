@@ -23,7 +23,7 @@ import numba
 import numpy as np
 
 from trunk_drake.model.osim_wrap import INSIDE, MANDATORY, METHODS, NO_WRAP, WRAPPED, wrap_cylinder, wrap_ellipsoid, wrap_sphere
-from trunk_drake.model.paths import _add_segment, _cross, quat_matrix
+from trunk_drake.model.paths import _cross, add_pull, quat_matrix
 from trunk_drake.model.spec import ModelSpec
 
 _jit = numba.njit(cache=True, fastmath=False, error_model="numpy")
@@ -46,6 +46,20 @@ def _entry_position(e, P, pw_r, Rw, cw, pw_obj):
 
 
 @_jit
+def _ground(e, P, pw_r, Rw, cw, pw_obj, gpos, gset):
+    """An entry's position in ground as OpenSim reads it: a wrap point keeps the position it had
+    when first read at this pose (OpenSim caches Point::getLocationInGround per state), even
+    after a later wrap pass moves it."""
+    if e >= 0:
+        return P[e].copy()
+    w, k = (-e - 1) // 2, (-e - 1) % 2
+    if not gset[w, k]:
+        gpos[w, k] = _entry_position(e, P, pw_r, Rw, cw, pw_obj)
+        gset[w, k] = True
+    return gpos[w, k].copy()
+
+
+@_jit
 def _remove_wrap(ent, n, w):
     """Remove path wrap w's two tangent points from the entry list; returns the new count."""
     first = _wrap_point_id(w, 0)
@@ -58,7 +72,7 @@ def _remove_wrap(ent, n, w):
 
 
 @_jit
-def _path_length(ent, n, P, pw_r, pw_len, Rw, cw, pw_obj):
+def _path_length(ent, n, P, pw_r, pw_len, Rw, cw, pw_obj, gpos, gset):
     total = 0.0
     for j in range(n - 1):
         a, b = ent[j], ent[j + 1]
@@ -66,7 +80,7 @@ def _path_length(ent, n, P, pw_r, pw_len, Rw, cw, pw_obj):
             if (-b - 1) % 2 == 1:
                 total += pw_len[(-b - 1) // 2]
             continue
-        d = _entry_position(b, P, pw_r, Rw, cw, pw_obj) - _entry_position(a, P, pw_r, Rw, cw, pw_obj)
+        d = _ground(b, P, pw_r, Rw, cw, pw_obj, gpos, gset) - _ground(a, P, pw_r, Rw, cw, pw_obj, gpos, gset)
         total += math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
     return total
 
@@ -84,7 +98,7 @@ def _wrap_segment(x1, x2, o, Rw, cw, wo_kind, wo_dims, wo_axis, wo_sign, method,
 
 
 @_jit
-def _apply_wraps(ent, n, pts, site_active, P, pw_obj, pw_start, pw_end, pw_method, pw_r, pw_len,
+def _apply_wraps(ent, n, pts, site_active, P, pw_obj, pw_start, pw_end, pw_method, pw_r, pw_len, gpos, gset,
                  Rw, cw, wo_kind, wo_dims, wo_axis, wo_sign):
     """OpenSim's applyWrapObjects on one muscle; returns the new entry count."""
     n_w = pw_obj.shape[0]
@@ -134,8 +148,10 @@ def _apply_wraps(ent, n, pts, site_active, P, pw_obj, pw_start, pw_end, pw_metho
                 if status == WRAPPED:
                     t1 = Rw[o] @ r1 + cw[o]
                     t2 = Rw[o] @ r2 + cw[o]
-                    change = (math.sqrt(np.sum((x1 - t1) ** 2)) + wlen + math.sqrt(np.sum((x2 - t2) ** 2))
-                              - math.sqrt(np.sum((x2 - x1) ** 2)))
+                    g1 = _ground(ea, P, pw_r, Rw, cw, pw_obj, gpos, gset)
+                    g2 = _ground(eb, P, pw_r, Rw, cw, pw_obj, gpos, gset)
+                    change = (math.sqrt(np.sum((g1 - t1) ** 2)) + wlen + math.sqrt(np.sum((g2 - t2) ** 2))
+                              - math.sqrt(np.sum((g2 - g1) ** 2)))
                     if change < best_change:
                         best_end, best_len, best_change = a + 1, wlen, change
                         best_r1[:] = r1
@@ -149,7 +165,7 @@ def _apply_wraps(ent, n, pts, site_active, P, pw_obj, pw_start, pw_end, pw_metho
                 pw_r[w, 0, :] = best_r1
                 pw_r[w, 1, :] = best_r2
                 pw_len[w] = best_len
-        length = _path_length(ent, n, P, pw_r, pw_len, Rw, cw, pw_obj)
+        length = _path_length(ent, n, P, pw_r, pw_len, Rw, cw, pw_obj, gpos, gset)
         if abs(length - last) < 0.0005:
             break
         last = length
@@ -196,9 +212,11 @@ def _osim_kernel(R, p, axes, origins, revolute, moves, site_body, site_local, si
                 n += 1
         pw_r = np.zeros((n_w, 2, 3))
         pw_len = np.zeros(n_w)
+        gpos = np.zeros((n_w, 2, 3))
+        gset = np.zeros((n_w, 2), dtype=np.bool_)
         if n_w > 0:
             n = _apply_wraps(ent, n, pts, site_active, P, pw_obj, pw_start[w0:w0 + n_w], pw_end[w0:w0 + n_w],
-                             pw_method[w0:w0 + n_w], pw_r, pw_len, Rw, cw, wo_kind, wo_dims, wo_axis, wo_sign)
+                             pw_method[w0:w0 + n_w], pw_r, pw_len, gpos, gset, Rw, cw, wo_kind, wo_dims, wo_axis, wo_sign)
         for j in range(n - 1):
             a, b = ent[j], ent[j + 1]
             if a < 0 and b < 0 and pw_obj[(-a - 1) // 2] == pw_obj[(-b - 1) // 2]:
@@ -207,16 +225,19 @@ def _osim_kernel(R, p, axes, origins, revolute, moves, site_body, site_local, si
                 continue
             ba = site_body[a] if a >= 0 else wo_body[pw_obj[(-a - 1) // 2]]
             bb = site_body[b] if b >= 0 else wo_body[pw_obj[(-b - 1) // 2]]
+            xa = _ground(a, P, pw_r, Rw, cw, pw_obj, gpos, gset)
+            xb = _ground(b, P, pw_r, Rw, cw, pw_obj, gpos, gset)
+            d = xb - xa
+            L = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+            lengths[m] += L
+            if ba == bb or L < 1e-15:
+                continue
+            # the tension pulls along the (first-read) ground positions, applied at the current points
+            u = d / L
             T[0] = _entry_position(a, P, pw_r, Rw, cw, pw_obj)
             T[1] = _entry_position(b, P, pw_r, Rw, cw, pw_obj)
-            if ba == bb:
-                d = T[1] - T[0]
-                lengths[m] += math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-                continue
-            _add_segment(m, T, 0, ba, T, 1, bb, revolute, moves, axes, axo, lengths, grad)
+            add_pull(m, u[0], u[1], u[2], T[0], ba, T[1], bb, revolute, moves, axes, axo, grad)
             if (a >= 0 and site_moving[a]) or (b >= 0 and site_moving[b]):
-                d = T[1] - T[0]
-                u = d / math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
                 if a >= 0 and site_moving[a]:
                     grad_q[m] -= u @ site_dw[a]
                 if b >= 0 and site_moving[b]:

@@ -211,7 +211,7 @@ def _adjust_tangent(pt, r, w):
 def _helix(p1, p2, r1, r2, radius, long_wrap, single):
     """Length of the helix from r1 to r2 (tangent points adjusted in place for multi-wrap paths)."""
     sense = -1.0 if long_wrap else 1.0
-    for _ in range(101):
+    for adjustments in range(101):
         a1, _ = _closest_on_line(r1, _P0, _DN)
         a2, _ = _closest_on_line(r2, _P0, _DN)
         axial = _dot(a2 - a1, _DN)
@@ -222,7 +222,7 @@ def _helix(p1, p2, r1, r2, radius, long_wrap, single):
         x = radius * theta
         length = math.sqrt(x * x + axial * axial)
         n_seg = max(1, int(length / 0.002))
-        if single or n_seg < 2 or _ >= 100:
+        if single or n_seg < 2 or adjustments >= 100:
             return length
         t = 1.0 / n_seg
         w1 = _axis_rotation(sense * t * theta) @ r1 + _DN * (t * axial)

@@ -94,6 +94,8 @@ class TrunkModel:
         for i in self._pose_bodies:  # only bodies that carry sites, wraps or joint frames
             poses[i] = all_poses[i].GetAsMatrix34()
         R, p = poses[:, :, :3], poses[:, :, 3]
+        if isinstance(self._paths, OsimKinematics):
+            R, p = self._paths.repose(R, p, plant.GetPositions(context))
         Rj = R[self._joint_body]
         axes = (Rj @ self._joint_axis[:, :, None])[:, :, 0]
         origins = (Rj @ self._joint_anchor[:, :, None])[:, :, 0] + p[self._joint_body]
@@ -144,6 +146,24 @@ class TrunkModel:
         if v is not None:
             v = self.check_q(v, "v", check_range=False)
         return self.path_state_from_context(self._context, v)
+
+    def center_of_mass(self, q) -> np.ndarray:
+        """Whole-model centre of mass in the world at q (follower bodies at their true poses), m.
+
+        Equals the plant's own unless an OpenSim model has follower bodies with mass (see
+        trunk_drake.model.osim_config): the plant holds those at their q = 0 displacement.
+        """
+        q = self.check_q(q, check_range=False)
+        self.plant.SetPositions(self._context, q)
+        all_poses = self.plant.get_body_poses_output_port().Eval(self._context)
+        poses = np.array([X.GetAsMatrix34() for X in all_poses])
+        R, p = poses[:, :, :3], poses[:, :, 3]
+        if isinstance(self._paths, OsimKinematics):
+            R, p = self._paths.repose(R, p, q)
+        index = [int(self.plant.GetBodyByName(b.name).index()) for b in self.spec.bodies]
+        mass = np.array([b.mass for b in self.spec.bodies])
+        points = np.array([R[i] @ b.com + p[i] for i, b in zip(index, self.spec.bodies)])
+        return mass @ points / mass.sum()
 
     def muscle_lengths(self, q) -> np.ndarray:
         """Musculotendon lengths (n_muscles,), m."""
