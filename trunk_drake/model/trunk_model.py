@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 from pydrake.multibody.tree import BodyIndex, JointIndex
 
+from trunk_drake.model.anthropometry import Passenger, with_passenger
 from trunk_drake.model.architecture import with_hill_parameters
 from trunk_drake.model.myotorso import read_myotorso
 from trunk_drake.model.osim import load_osim_spec
@@ -218,7 +219,7 @@ def _body_index(i: int) -> BodyIndex:
 
 
 def load_model(model: str | Path | None = None, dofs: str | None = None, spec: ModelSpec | None = None,
-               pelvis_mass: float | None = None, pelvis_free: bool = True) -> TrunkModel:
+               pelvis_mass: float | None = None, pelvis_free: bool = True, passenger: Passenger | None = None) -> TrunkModel:
     """A trunk model in configuration `dofs` ("sagittal", "spine3d" or "all"; default "sagittal").
 
     `model`: None or "myotorso" for the default MyoTorso model, or the path of an OpenSim
@@ -227,7 +228,8 @@ def load_model(model: str | Path | None = None, dofs: str | None = None, spec: M
     fiber and tendon lengths are derived from the neutral-posture musculotendon lengths by
     Christophy et al.'s method unless the spec carries them (OpenSim files do).
     `pelvis_mass` replaces the pelvis' mass; ``pelvis_free=False`` welds the sagittal pelvis
-    (no ``pelvis_tx``).
+    (no ``pelvis_tx``). `passenger` adds the arms and the rest of the head to the thorax
+    (model/anthropometry.py).
     """
     if model is not None and str(model) in DOFS:
         if dofs is not None:
@@ -242,4 +244,6 @@ def load_model(model: str | Path | None = None, dofs: str | None = None, spec: M
         geometric = _build(spec, "spine3d", None, False)
         neutral = geometric.path_state(np.zeros(len(geometric.coordinate_info))).lengths
         spec = with_hill_parameters(spec, neutral)
+    if passenger is not None:
+        spec = with_passenger(spec, passenger)
     return _build(spec, dofs, pelvis_mass, pelvis_free)
