@@ -10,6 +10,7 @@ function).
 
 from __future__ import annotations
 
+from bisect import bisect_left
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -49,6 +50,32 @@ class Function:
     def derivative(self, x):
         """f'(x), elementwise."""
         return self._evaluate(np.asarray(x, dtype=float), 1)
+
+    def at(self, x: float, order: int = 0) -> float:
+        """f(x) (order 0) or f'(x) (order 1) of one float, without numpy overhead."""
+        kind = self.kind
+        if kind == "constant":
+            return 0.0 if order else self.coefficients[0]
+        if kind == "linear":
+            return self.coefficients[0] if order else self.coefficients[0] * x + self.coefficients[1]
+        if kind == "multiplier":
+            return self.scale * self.inner.at(x, order)
+        if kind == "polynomial":
+            return float(self._evaluate(np.asarray(x, dtype=float), order))
+        knots, values = self.x, self.y
+        b, c, d = self._pieces
+        last = len(knots) - 1
+        if last == 0:
+            return 0.0 if order else values[0]
+        if abs(x - knots[0]) <= _ROUNDOFF or x < knots[0]:
+            return b[0] if order else values[0] + min(x - knots[0], 0.0) * b[0]
+        if abs(x - knots[last]) <= _ROUNDOFF or x > knots[last]:
+            return b[last] if order else values[last] + max(x - knots[last], 0.0) * b[last]
+        k = min(max(bisect_left(knots, x) - 1, 0), last - 1)
+        dx = x - knots[k]
+        if order:
+            return b[k] + dx * (2.0 * c[k] + 3.0 * dx * d[k])
+        return values[k] + dx * (b[k] + dx * (c[k] + dx * d[k]))
 
     def _evaluate(self, x, order):
         if self.kind == "constant":

@@ -165,8 +165,8 @@ class SourceCoordinates:
                 dc[i, k] = ch.sign / float(ch.joint.function.derivative(c[i]))
         for cp in self.couplers:
             i, j = self.index[cp.dependent], self.index[cp.independent]
-            c[i] = cp.scale * float(cp.function.value(c[j]))
-            dc[i] = cp.scale * float(cp.function.derivative(c[j])) * dc[j]
+            c[i] = cp.scale * cp.function.at(c[j])
+            dc[i] = cp.scale * cp.function.at(c[j], 1) * dc[j]
         return c, dc
 
     def coordinate_range(self, choice: AxisChoice) -> tuple[float, float]:

@@ -40,6 +40,7 @@ class OsimKinematics:
         self.followers = self.source.followers(set(plant_joints))
         follower_bodies = {j.body for j in self.followers}
         self._follower_bodies = sorted(follower_bodies, key=self._depth)
+        self._body_joints = {b: [j for j in spec.joints if j.body == b] for b in self._follower_bodies}
         self._subtree = {b: self._descendants(b) for b in self._follower_bodies}
         moves = np.zeros((len(body_names), len(self.followers)))
         for k, j in enumerate(self.followers):
@@ -69,12 +70,12 @@ class OsimKinematics:
         parents = {self.spec.body(f).parent for f in self._follower_bodies} - {None}
         return self.paths.bodies_used() | {self._body_index[b] for b in moved | parents}
 
-    def repose(self, R, p, q):
+    def repose(self, R, p, q, c=None):
         """Body poses with follower bodies (and their subtrees) moved to their true poses (copies)."""
         if not self._follower_bodies:
             return R, p
         R, p = R.copy(), p.copy()
-        c, _ = self.source.values(q)
+        c = self.source.values(q)[0] if c is None else c
         for name in self._follower_bodies:
             Rx, px, _ = self._walk(name, R, p, q, c)
             ib = self._body_index[name]
@@ -97,14 +98,12 @@ class OsimKinematics:
         px = Rx @ body.pos + px
         Rx = Rx @ quat_matrix(body.quat)
         axes = {}
-        for j in self.spec.joints:
-            if j.body != name:
-                continue
+        for j in self._body_joints[name]:
             if j.name in self._plant_joints:
                 k = self._plant_joints[j.name]
                 value = q[k] / self._coords[k].sign
             elif j.name in self._follower_index:
-                value = float(j.function.value(c[self.source.index[j.coordinate]]))
+                value = j.function.at(c[self.source.index[j.coordinate]])
             else:
                 value = self._fixed[j.name]
             axis_w, origin_w = Rx @ j.axis, Rx @ j.anchor + px
@@ -134,9 +133,14 @@ class OsimKinematics:
         """The model's coordinates (in its own units) at plant positions q."""
         return self.source.values(q)[0]
 
-    def path_state(self, R, p, joint_axes, joint_origins, q, v=None) -> PathState:
-        """PathState at re-posed body poses R, p (see `repose`), plant joint axes and positions q."""
+    def path_state(self, R, p, q, joint_frames, v=None) -> PathState:
+        """PathState at the plant's body poses R, p and positions q (velocities v).
+
+        `joint_frames(R, p)` gives the plant joints' world axes and points from body poses.
+        """
         c, dc = self.source.values(q)
+        R, p = self.repose(R, p, q, c)
+        joint_axes, joint_origins = joint_frames(R, p)
         f_axes, f_origins = self._follower_axes(R, p, joint_axes, joint_origins, q, c)
         site_local = site_active = site_dw = None
         if self._conditional:
@@ -152,16 +156,16 @@ class OsimKinematics:
                 dlocal = np.zeros((3, self.nq))
                 for axis, (coord, f) in enumerate(self.spec.sites[i].motion):
                     x = c[self.source.index[coord]] if coord else 0.0
-                    site_local[i, axis] = f.value(x)
+                    site_local[i, axis] = f.at(x)
                     if coord:
-                        dlocal[axis] = f.derivative(x) * dc[self.source.index[coord]]
+                        dlocal[axis] = f.at(x, 1) * dc[self.source.index[coord]]
                 site_dw[i] = R[self._site_body[i]] @ dlocal
         axes = np.vstack([joint_axes, f_axes])
         origins = np.vstack([joint_origins, f_origins])
         lengths, grad, grad_q = self.paths.compute(R, p, axes, origins, site_local, site_active, site_dw)
         total = grad[:, :self.nq] + grad_q
         if self.followers:
-            G = np.array([j.function.derivative(c[self.source.index[j.coordinate]]) * dc[self.source.index[j.coordinate]]
+            G = np.array([j.function.at(c[self.source.index[j.coordinate]], 1) * dc[self.source.index[j.coordinate]]
                           for j in self.followers])
             total = total + grad[:, self.nq:] @ G
         state = PathState(lengths=lengths, moment_arms=-total)

@@ -37,26 +37,44 @@ def _wrap_point_id(w, k):
 
 
 @_jit
-def _entry_position(e, P, pw_r, Rw, cw, pw_obj):
+def _entry_into(e, P, pw_r, Rw, cw, pw_obj, out):
+    """Write the current world position of a path entry (site or wrap tangent point) into out."""
     if e >= 0:
-        return P[e].copy()
+        out[0], out[1], out[2] = P[e, 0], P[e, 1], P[e, 2]
+        return
     w, k = (-e - 1) // 2, (-e - 1) % 2
     o = pw_obj[w]
-    return Rw[o] @ pw_r[w, k] + cw[o]
+    for r in range(3):
+        out[r] = Rw[o, r, 0] * pw_r[w, k, 0] + Rw[o, r, 1] * pw_r[w, k, 1] + Rw[o, r, 2] * pw_r[w, k, 2] + cw[o, r]
 
 
 @_jit
-def _ground(e, P, pw_r, Rw, cw, pw_obj, gpos, gset):
+def _entry_position(e, P, pw_r, Rw, cw, pw_obj):
+    out = np.empty(3)
+    _entry_into(e, P, pw_r, Rw, cw, pw_obj, out)
+    return out
+
+
+@_jit
+def _ground_into(e, P, pw_r, Rw, cw, pw_obj, gpos, gset, out):
     """An entry's position in ground as OpenSim reads it: a wrap point keeps the position it had
     when first read at this pose (OpenSim caches Point::getLocationInGround per state), even
     after a later wrap pass moves it."""
     if e >= 0:
-        return P[e].copy()
+        out[0], out[1], out[2] = P[e, 0], P[e, 1], P[e, 2]
+        return
     w, k = (-e - 1) // 2, (-e - 1) % 2
     if not gset[w, k]:
-        gpos[w, k] = _entry_position(e, P, pw_r, Rw, cw, pw_obj)
+        _entry_into(e, P, pw_r, Rw, cw, pw_obj, gpos[w, k])
         gset[w, k] = True
-    return gpos[w, k].copy()
+    out[0], out[1], out[2] = gpos[w, k, 0], gpos[w, k, 1], gpos[w, k, 2]
+
+
+@_jit
+def _ground(e, P, pw_r, Rw, cw, pw_obj, gpos, gset):
+    out = np.empty(3)
+    _ground_into(e, P, pw_r, Rw, cw, pw_obj, gpos, gset, out)
+    return out
 
 
 @_jit
@@ -183,7 +201,8 @@ def _osim_kernel(R, p, axes, origins, revolute, moves, site_body, site_local, si
     P = np.empty((n_sites, 3))
     for i in range(n_sites):
         b = site_body[i]
-        P[i] = R[b] @ site_local[i] + p[b]
+        for r in range(3):
+            P[i, r] = R[b, r, 0] * site_local[i, 0] + R[b, r, 1] * site_local[i, 1] + R[b, r, 2] * site_local[i, 2] + p[b, r]
     n_wo = wo_body.shape[0]
     Rw = np.empty((n_wo, 3, 3))
     cw = np.empty((n_wo, 3))
@@ -199,22 +218,24 @@ def _osim_kernel(R, p, axes, origins, revolute, moves, site_body, site_local, si
     lengths = np.zeros(n_m)
     grad = np.zeros((n_m, nc))
     grad_q = np.zeros((n_m, nq))
-    T = np.empty((2, 3))
+    X = np.empty((2, 3))  # ground positions as OpenSim reads them (pull direction, length)
+    T = np.empty((2, 3))  # current positions (where the pull acts)
+    max_w = max(1, np.max(mus_pw[:, 1]) if n_m else 1)
+    ent_buf = np.empty(np.max(mus_pt[:, 1]) + 2 * max_w if n_m else 1, dtype=np.int64)
+    pw_r, pw_len = np.zeros((max_w, 2, 3)), np.zeros(max_w)
+    gpos, gset = np.zeros((max_w, 2, 3)), np.zeros((max_w, 2), dtype=np.bool_)
     for m in range(n_m):
         pts = pt_site[mus_pt[m, 0]:mus_pt[m, 0] + mus_pt[m, 1]]
         w0, n_w = mus_pw[m, 0], mus_pw[m, 1]
         pw_obj = pw_wrap[w0:w0 + n_w]
-        ent = np.empty(pts.shape[0] + 2 * n_w, dtype=np.int64)
+        ent = ent_buf
         n = 0
         for s in pts:
             if site_active[s]:
                 ent[n] = s
                 n += 1
-        pw_r = np.zeros((n_w, 2, 3))
-        pw_len = np.zeros(n_w)
-        gpos = np.zeros((n_w, 2, 3))
-        gset = np.zeros((n_w, 2), dtype=np.bool_)
         if n_w > 0:
+            gset[:n_w] = False
             n = _apply_wraps(ent, n, pts, site_active, P, pw_obj, pw_start[w0:w0 + n_w], pw_end[w0:w0 + n_w],
                              pw_method[w0:w0 + n_w], pw_r, pw_len, gpos, gset, Rw, cw, wo_kind, wo_dims, wo_axis, wo_sign)
         for j in range(n - 1):
@@ -225,23 +246,24 @@ def _osim_kernel(R, p, axes, origins, revolute, moves, site_body, site_local, si
                 continue
             ba = site_body[a] if a >= 0 else wo_body[pw_obj[(-a - 1) // 2]]
             bb = site_body[b] if b >= 0 else wo_body[pw_obj[(-b - 1) // 2]]
-            xa = _ground(a, P, pw_r, Rw, cw, pw_obj, gpos, gset)
-            xb = _ground(b, P, pw_r, Rw, cw, pw_obj, gpos, gset)
-            d = xb - xa
-            L = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+            _ground_into(a, P, pw_r, Rw, cw, pw_obj, gpos, gset, X[0])
+            _ground_into(b, P, pw_r, Rw, cw, pw_obj, gpos, gset, X[1])
+            d0, d1, d2 = X[1, 0] - X[0, 0], X[1, 1] - X[0, 1], X[1, 2] - X[0, 2]
+            L = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
             lengths[m] += L
             if ba == bb or L < 1e-15:
                 continue
             # the tension pulls along the (first-read) ground positions, applied at the current points
-            u = d / L
-            T[0] = _entry_position(a, P, pw_r, Rw, cw, pw_obj)
-            T[1] = _entry_position(b, P, pw_r, Rw, cw, pw_obj)
-            add_pull(m, u[0], u[1], u[2], T[0], ba, T[1], bb, revolute, moves, axes, axo, grad)
-            if (a >= 0 and site_moving[a]) or (b >= 0 and site_moving[b]):
-                if a >= 0 and site_moving[a]:
-                    grad_q[m] -= u @ site_dw[a]
-                if b >= 0 and site_moving[b]:
-                    grad_q[m] += u @ site_dw[b]
+            u0, u1, u2 = d0 / L, d1 / L, d2 / L
+            _entry_into(a, P, pw_r, Rw, cw, pw_obj, T[0])
+            _entry_into(b, P, pw_r, Rw, cw, pw_obj, T[1])
+            add_pull(m, u0, u1, u2, T[0], ba, T[1], bb, revolute, moves, axes, axo, grad)
+            if a >= 0 and site_moving[a]:
+                for k in range(nq):
+                    grad_q[m, k] -= u0 * site_dw[a, 0, k] + u1 * site_dw[a, 1, k] + u2 * site_dw[a, 2, k]
+            if b >= 0 and site_moving[b]:
+                for k in range(nq):
+                    grad_q[m, k] += u0 * site_dw[b, 0, k] + u1 * site_dw[b, 1, k] + u2 * site_dw[b, 2, k]
     return lengths, grad, grad_q
 
 

@@ -379,37 +379,61 @@ def _closest_on_ellipse(a, b, u, v):
 
 
 @_jit
-def _closest_on_ellipsoid(a, pt, axis, dims):
-    """Closest surface point to `pt`; `axis` >= 0 forces the 2-D case in that coordinate plane."""
-    u, v, w = pt[0], pt[1], pt[2]
+def _closest_xyz(a0, a1, a2, u, v, w, axis, d0, d1, d2):
+    """Closest surface point (x, y, z) to (u, v, w) on the ellipsoid with semi-axes a (Eberly's
+    Newton); `axis` >= 0 forces the 2-D case in that coordinate plane, -1 picks it for points
+    on a coordinate plane (the one with the narrowest section, sizes d)."""
     if axis < 0:
         best = np.inf
+        sums = (d1 + d2, d0 + d2, d0 + d1)
+        coords = (u, v, w)
         for i in range(3):
-            if abs(pt[i]) <= _ROUNDOFF:
-                s = dims[0] + dims[1] + dims[2] - dims[i]
-                if best > s:
-                    axis, best = i, s
+            if abs(coords[i]) <= _ROUNDOFF and best > sums[i]:
+                axis, best = i, sums[i]
     if axis == 0:
-        y, z = _closest_on_ellipse(a[1], a[2], v, w)
-        return np.array([u, y, z])
+        y, z = _closest_on_ellipse(a1, a2, v, w)
+        return u, y, z
     if axis == 1:
-        z, x = _closest_on_ellipse(a[2], a[0], w, u)
-        return np.array([x, v, z])
+        z, x = _closest_on_ellipse(a2, a0, w, u)
+        return x, v, z
     if axis == 2:
-        x, y = _closest_on_ellipse(a[0], a[1], u, v)
-        return np.array([x, y, w])
-    a2, b2, c2 = a[0] ** 2, a[1] ** 2, a[2] ** 2
-    a2u2, b2v2, c2w2 = a2 * u * u, b2 * v * v, c2 * w * w
-    t = 0.0 if (u / a[0]) ** 2 + (v / a[1]) ** 2 + (w / a[2]) ** 2 < 1.0 else max(a[0], a[1], a[2]) * math.sqrt(u * u + v * v + w * w)
+        x, y = _closest_on_ellipse(a0, a1, u, v)
+        return x, y, w
+    a2_, b2, c2 = a0 * a0, a1 * a1, a2 * a2
+    a2u2, b2v2, c2w2 = a2_ * u * u, b2 * v * v, c2 * w * w
+    t = 0.0 if (u / a0) ** 2 + (v / a1) ** 2 + (w / a2) ** 2 < 1.0 else max(a0, a1, a2) * math.sqrt(u * u + v * v + w * w)
     P = Q = R = 1.0
     for _ in range(64):
-        P, Q, R = t + a2, t + b2, t + c2
+        P, Q, R = t + a2_, t + b2, t + c2
         f = P * P * Q * Q * R * R - a2u2 * Q * Q * R * R - b2v2 * P * P * R * R - c2w2 * P * P * Q * Q
         if abs(f) < 1e-9:
             break
         fp = 2.0 * (P * Q * R * (Q * R + P * R + P * Q) - a2u2 * Q * R * (Q + R) - b2v2 * P * R * (P + R) - c2w2 * P * Q * (P + Q))
         t -= f / fp
-    return np.array([a2 * u / P, b2 * v / Q, c2 * w / R])
+    return a2_ * u / P, b2 * v / Q, c2 * w / R
+
+
+@_jit
+def _closest_on_ellipsoid(a, pt, axis, dims):
+    x, y, z = _closest_xyz(a[0], a[1], a[2], pt[0], pt[1], pt[2], axis, dims[0], dims[1], dims[2])
+    return np.array([x, y, z])
+
+
+@_jit
+def _fan_direction(a, s1, s12, dims):
+    """Unit sum of the directions from the points of the segment to their closest surface points."""
+    sx = sy = sz = 0.0
+    for i in range(1, _FAN - 1):
+        f = i / _FAN
+        u, v, w = s1[0] + f * s12[0], s1[1] + f * s12[1], s1[2] + f * s12[2]
+        x, y, z = _closest_xyz(a[0], a[1], a[2], u, v, w, -1, dims[0], dims[1], dims[2])
+        dx, dy, dz = x - u, y - v, z - w
+        mag = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if mag >= _EPS:
+            inv = 1.0 / mag
+            sx, sy, sz = sx + dx * inv, sy + dy * inv, sz + dz * inv
+    out, _ = _unit(np.array([sx, sy, sz]))
+    return out
 
 
 @_jit
@@ -583,14 +607,7 @@ def wrap_ellipsoid(p1_in, p2_in, radii, axis, sign, method, r1, r2):
         if method == 2 or mu[best] > _MU_MIN:
             c1 = t_c1[best].copy()
         if method == 0 and mu[best] < _MU_MAX:
-            v_sum = np.zeros(3)
-            mid = s1 + 0.5 * s12
-            for i in range(1, _FAN - 1):
-                sv = s1 + (i / _FAN) * s12
-                blade, _ = _unit(_closest_on_ellipsoid(a, sv, -1, radii) - sv)
-                v_sum += blade
-            v_sum, _ = _unit(v_sum)
-            guess = mid + v_sum
+            guess = s1 + 0.5 * s12 + _fan_direction(a, s1, s12, radii)
             if mu[best] <= _MU_MIN:
                 c1 = _closest_on_ellipsoid(a, guess, -1, radii)
                 fan_weight = 1.0

@@ -96,13 +96,17 @@ class TrunkModel:
             poses[i] = all_poses[i].GetAsMatrix34()
         R, p = poses[:, :, :3], poses[:, :, 3]
         if isinstance(self._paths, OsimKinematics):
-            R, p = self._paths.repose(R, p, plant.GetPositions(context))
-        Rj = R[self._joint_body]
-        axes = (Rj @ self._joint_axis[:, :, None])[:, :, 0]
-        origins = (Rj @ self._joint_anchor[:, :, None])[:, :, 0] + p[self._joint_body]
-        if isinstance(self._paths, OsimKinematics):
-            return self._paths.path_state(R, p, axes, origins, plant.GetPositions(context), v)
+            return self._paths.path_state(R, p, plant.GetPositions(context), self._joint_frames(), v)
+        axes, origins = self._joint_frames()(R, p)
         return self._paths.compute(R, p, axes, origins, v)
+
+    def _joint_frames(self):
+        """Function of body poses (R, p) giving the world axis and a point of every coordinate's joint."""
+        def frames(R, p):
+            Rj = R[self._joint_body]
+            axes = (Rj @ self._joint_axis[:, :, None])[:, :, 0]
+            return axes, (Rj @ self._joint_anchor[:, :, None])[:, :, 0] + p[self._joint_body]
+        return frames
 
     # ---- OpenSim models: the file's own coordinates --------------------------------------
     def _osim(self) -> OsimKinematics:
