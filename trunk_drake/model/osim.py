@@ -306,7 +306,7 @@ class _Reader:
             ))
         # translations act before rotations (the child-side frame translates in the parent-side frame)
         axes.sort(key=lambda j: j.kind == "hinge")
-        return child, parent, X_PB0, axes, coords
+        return child, parent, X_PB0, axes, [replace(c, kind=_motion_type(c.name, axes)) for c in coords]
 
     def _owner_body(self, joint_el):
         for name, body in self.body_els.items():
@@ -319,7 +319,7 @@ class _Reader:
         for c in el.findall("coordinates/Coordinate") + el.findall("CoordinateSet/objects/Coordinate"):
             rng = _floats(_text(c, "range", "-1e10 1e10"))
             out.append(CoordinateSpec(
-                name=c.get("name"), kind=_text(c, "motion_type", "rotational"),
+                name=c.get("name"), kind="rotational",
                 default=float(_text(c, "default_value", "0")), range=(float(rng[0]), float(rng[1])),
                 locked=_bool(_text(c, "locked")),
             ))
@@ -540,6 +540,22 @@ class _Reader:
             self.warn.add(p.tag, f"{where}/{name}", "read as a fixed path point")
         location = X.R @ _vec(p, "location") + X.p
         return SiteSpec(name=name, body=body, pos=location, condition=condition, motion=motion)
+
+
+def _motion_type(coordinate: str, axes: list[JointSpec]) -> str:
+    """OpenSim's motion type: "rotational" / "translational" where the coordinate is an axis'
+    displacement (a linear function of slope +-1), else "coupled" (OpenSim then keeps the
+    coordinate in its own units in degree-valued motion files)."""
+    kind = None
+    for j in axes:
+        if j.coordinate != coordinate:
+            continue
+        form = j.function.linear_form() if j.function.kind == "linear" else None
+        if form is not None and abs(form[0]) == 1.0:
+            kind = "rotational" if j.kind == "hinge" else "translational"
+        elif kind is None:
+            kind = "coupled"
+    return kind or "rotational"
 
 
 def _quadrant(text, path, name) -> str:

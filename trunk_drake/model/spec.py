@@ -56,7 +56,7 @@ class CoordinateSpec:
     """A generalized coordinate of an OpenSim model (values in its own units: rad or m)."""
 
     name: str
-    kind: str  # "rotational" or "translational"
+    kind: str  # OpenSim's motion type: "rotational", "translational" or "coupled" (see osim._motion_type)
     default: float
     range: tuple[float, float]
     locked: bool = False

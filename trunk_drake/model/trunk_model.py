@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -222,12 +224,33 @@ def _body_index(i: int) -> BodyIndex:
     return BodyIndex(i)
 
 
+MODEL_ENV = "TRUNK_DRAKE_MODEL"  # an .osim path: the model `load_model()` loads when none is given
+
+
+@contextmanager
+def model_source(path: str | Path | None):
+    """Within the block, `load_model()` without a model loads `path` (worker processes inherit it)."""
+    if path is None:
+        yield
+        return
+    previous = os.environ.get(MODEL_ENV)
+    os.environ[MODEL_ENV] = str(path)
+    try:
+        yield
+    finally:
+        if previous is None:
+            os.environ.pop(MODEL_ENV, None)
+        else:
+            os.environ[MODEL_ENV] = previous
+
+
 def load_model(model: str | Path | None = None, dofs: str | None = None, spec: ModelSpec | None = None,
                pelvis_mass: float | None = None, pelvis_free: bool = True, passenger: Passenger | None = None) -> TrunkModel:
     """A trunk model in configuration `dofs` ("sagittal", "spine3d" or "all"; default "sagittal").
 
-    `model`: None or "myotorso" for the default MyoTorso model, or the path of an OpenSim
-    ``.osim`` file (read by `trunk_drake.model.osim`, mapped with its file in ``models/osim/``);
+    `model`: None or "myotorso" for the default MyoTorso model (None: $TRUNK_DRAKE_MODEL if set,
+    see `model_source`), or the path of an OpenSim ``.osim`` file (read by
+    `trunk_drake.model.osim`, mapped with its file in ``models/osim/``);
     a configuration name in its place is read as `dofs` (``load_model("spine3d")``). Hill
     fiber and tendon lengths are derived from the neutral-posture musculotendon lengths by
     Christophy et al.'s method unless the spec carries them (OpenSim files do).
@@ -243,6 +266,7 @@ def load_model(model: str | Path | None = None, dofs: str | None = None, spec: M
     if dofs not in DOFS:
         raise ValueError(f"unknown configuration dofs={dofs!r}; expected one of {DOFS}")
     if spec is None:
+        model = model if model is not None else os.environ.get(MODEL_ENV)
         spec = read_myotorso() if model is None or str(model).lower() == "myotorso" else load_osim_spec(model)
     if any(np.isnan(m.optimal_fiber_length) for m in spec.muscles):
         geometric = _build(spec, "spine3d", None, False)
