@@ -102,3 +102,30 @@ def test_missing_file_invalid_xml_and_missing_lumbar_coordinates(tmp_path):
         td.load_model(bad)
     with pytest.raises(ValueError, match="names no lumbar level bodies"):
         _load("sagittal")
+
+
+def test_unsupported_elements_warn_once_each(tmp_path):
+    """Elements the reader does not model are named, with what was done instead; none dropped silently."""
+    text = FIXTURE.read_text()
+    text = text.replace('<WrapSphere name="hip_ball">', '<WrapTorus name="ring"><inner_radius>0.01</inner_radius>'
+                        '<outer_radius>0.05</outer_radius></WrapTorus><WrapSphere name="hip_ball">')
+    text = text.replace('<PinJoint name="neck">', '<BallJoint name="shoulder"><socket_parent_frame>/bodyset/thorax'
+                        '</socket_parent_frame><socket_child_frame>/bodyset/arm</socket_child_frame></BallJoint>'
+                        '<PinJoint name="neck">')
+    text = text.replace('<Body name="head">', '<Body name="arm"><mass>3</mass><mass_center>0 -0.2 0</mass_center>'
+                        '<inertia>0.02 0.002 0.02 0 0 0</inertia></Body><Body name="head">')
+    text = text.replace('<ForceSet name="forceset">\n      <objects>', '<ForceSet name="forceset">\n      <objects>'
+                        '<CoordinateActuator name="motor"><coordinate>flex</coordinate></CoordinateActuator>')
+    text = text.replace('<ConstraintSet name="constraintset">\n      <objects>', '<ConstraintSet name="constraintset">\n'
+                        '      <objects><WeldConstraint name="glue"/>')
+    path = tmp_path / "unsupported.osim"
+    path.write_text(text)
+    with pytest.warns(UserWarning) as record:
+        read_osim(path)
+    messages = [str(w.message) for w in record]
+    for element, instead in [("WrapTorus", "paths do not wrap over it"), ("BallJoint", "welded with its joint frames aligned"),
+                             ("CoordinateActuator", "ignored"), ("WeldConstraint", "ignored"),
+                             ("Millard2012EquilibriumMuscle", "Thelen 2003 curves")]:
+        hits = [m for m in messages if element in m]
+        assert len(hits) == 1 and instead in hits[0], (element, messages)
+    assert all("\n" not in m for m in messages)

@@ -226,7 +226,7 @@ class _Reader:
             els = [j for b in self.body_els.values() for j in b.findall("Joint/*")]
         for el in els:
             if el.tag not in _JOINT_TAGS:
-                self.warn.add(el.tag, el.get("name", "?"), "welded at its default pose")
+                self.warn.add(el.tag, el.get("name", "?"), "welded with its joint frames aligned (zero displacement)")
         return els
 
     def _offset_frames(self, joints_el):
