@@ -23,7 +23,7 @@ import numba
 import numpy as np
 
 from trunk_drake.model.osim_wrap import INSIDE, MANDATORY, METHODS, NO_WRAP, WRAPPED, wrap_cylinder, wrap_ellipsoid, wrap_sphere
-from trunk_drake.model.paths import _cross, add_pull, quat_matrix
+from trunk_drake.model.paths import add_pull, axis_moments, quat_matrix, site_positions
 from trunk_drake.model.spec import ModelSpec
 
 _jit = numba.njit(cache=True, fastmath=False, error_model="numpy")
@@ -197,12 +197,7 @@ def _apply_wraps(ent, n, pts, site_active, P, pw_obj, pw_start, pw_end, pw_metho
 def _osim_kernel(R, p, axes, origins, revolute, moves, site_body, site_local, site_active, site_dw, site_moving,
                  mus_pt, mus_pw, pt_site, pw_wrap, pw_start, pw_end, pw_method,
                  wo_body, wo_pos, wo_rot, wo_kind, wo_dims, wo_axis, wo_sign, nq):
-    n_sites = site_body.shape[0]
-    P = np.empty((n_sites, 3))
-    for i in range(n_sites):
-        b = site_body[i]
-        for r in range(3):
-            P[i, r] = R[b, r, 0] * site_local[i, 0] + R[b, r, 1] * site_local[i, 1] + R[b, r, 2] * site_local[i, 2] + p[b, r]
+    P = site_positions(R, p, site_body, site_local)
     n_wo = wo_body.shape[0]
     Rw = np.empty((n_wo, 3, 3))
     cw = np.empty((n_wo, 3))
@@ -211,9 +206,7 @@ def _osim_kernel(R, p, axes, origins, revolute, moves, site_body, site_local, si
         Rw[o] = R[b] @ wo_rot[o]
         cw[o] = R[b] @ wo_pos[o] + p[b]
     nc = axes.shape[0]
-    axo = np.empty((nc, 3))
-    for k in range(nc):
-        _cross(axes[k], origins[k], axo[k])
+    axo = axis_moments(axes, origins)
     n_m = mus_pt.shape[0]
     lengths = np.zeros(n_m)
     grad = np.zeros((n_m, nc))

@@ -309,19 +309,33 @@ def _add_segment(m, P, a, ba, Q, b, bb, revolute, moves, axes, axo, lengths, gra
     add_pull(m, u0 / L, u1 / L, u2 / L, P[a], ba, Q[b], bb, revolute, moves, axes, axo, grad)
 
 
-@_jit
-def _path_kernel(R, p, axes, origins, revolute, moves, site_body, site_local, st, wr, wr_body, wr_pos, wr_rot,
-                 wr_radius, wr_cyl, n_muscles):
+@numba.njit(cache=True, inline="always")
+def site_positions(R, p, site_body, site_local):
+    """World positions (n_sites, 3) of points given in their bodies' frames."""
     n_sites = site_body.shape[0]
     P = np.empty((n_sites, 3))
     for i in range(n_sites):
         b = site_body[i]
         for r in range(3):
             P[i, r] = R[b, r, 0] * site_local[i, 0] + R[b, r, 1] * site_local[i, 1] + R[b, r, 2] * site_local[i, 2] + p[b, r]
-    nc = axes.shape[0]
-    axo = np.empty((nc, 3))
-    for k in range(nc):
+    return P
+
+
+@numba.njit(cache=True, inline="always")
+def axis_moments(axes, origins):
+    """a_k x o_k for every joint axis (the point-independent part of a revolute Jacobian column)."""
+    axo = np.empty((axes.shape[0], 3))
+    for k in range(axes.shape[0]):
         _cross(axes[k], origins[k], axo[k])
+    return axo
+
+
+@_jit
+def _path_kernel(R, p, axes, origins, revolute, moves, site_body, site_local, st, wr, wr_body, wr_pos, wr_rot,
+                 wr_radius, wr_cyl, n_muscles):
+    P = site_positions(R, p, site_body, site_local)
+    axo = axis_moments(axes, origins)
+    nc = axes.shape[0]
     lengths = np.zeros(n_muscles)
     grad = np.zeros((n_muscles, nc))
     for h in range(st.shape[0]):
