@@ -481,6 +481,7 @@ class _Reader:
             elif el.tag != "Thelen2003Muscle":
                 self.warn.add(f"{el.tag} force-length-velocity curves", name, "simulated with Thelen 2003 curves and its parameters")
             if _bool(_text(el, "isDisabled")) or not _bool(_text(el, "appliesForce"), True):
+                self.warn.add("disabled muscle", name, "left out, as OpenSim does")
                 continue
             first = len(sites)
             for p in path_el.findall("PathPointSet/objects/*"):

@@ -116,6 +116,8 @@ def osim_choices(spec: ModelSpec, dofs: str) -> list[AxisChoice]:
     """The transform axes that are the plant coordinates of configuration `dofs` (no pelvis_tx)."""
     if dofs == "all":
         return free_axes(spec)
+    if dofs not in ("sagittal", "spine3d"):
+        raise ValueError(f"configuration {dofs!r} is not available for OpenSim models (yet); use sagittal, spine3d or all")
     return level_axes(spec, LEVELS, ("FE",) if dofs == "sagittal" else ("FE", "LB", "AR"))
 
 
