@@ -259,20 +259,6 @@ class ClosedLoop:
     def static(self, x) -> StaticStability:
         """Energy Hessian at rest state x (activations held)."""
         q, a = self.q_of(x), x[self.activations]
-        plant, ctx = self.td.plant, self.plant_context
-        h = 1e-6
-
-        def gravity(qq):
-            plant.SetPositions(ctx, qq)
-            return plant.CalcGravityGeneralizedForces(ctx)
-
-        def arms(qq):
-            return self.base.path_state(qq).moment_arms
-
-        eye = np.eye(self.nq)
-        gravity_hessian = -np.column_stack([(gravity(q + h * e) - gravity(q - h * e)) / (2 * h) for e in eye])
-        length_hessian = -np.stack([(arms(q + h * e) - arms(q - h * e)) / (2 * h) for e in eye], axis=2)
-        length_hessian = 0.5 * (length_hessian + length_hessian.transpose(0, 2, 1))
         path = self.base.path_state(q, np.zeros(self.nv))
         constants = self.td.muscles.constants
         mask = np.ones(self.n) if self.options.muscle_mask is None else np.asarray(self.options.muscle_mask, float)
@@ -287,7 +273,8 @@ class ClosedLoop:
             srs = mask * np.where(kin.clamped, 0.0, self.options.srs.path_stiffness(
                 thelen.clamp_activation(a, constants), kin.active_force_length, self.params.max_isometric_force,
                 self.params.optimal_fiber_length, kin.cos_pennation))
-        return static_stability(self.coordinates, gravity_hessian, bushing, force, length_hessian, path.moment_arms, slope, srs)
+        return static_stability(self.coordinates, gravity_hessian(self.td.plant, self.plant_context, q), bushing, force,
+                                length_hessian(self.base, q), path.moment_arms, slope, srs)
 
     # ---- dynamic -----------------------------------------------------------------
     def jacobian(self, x, h: float = JACOBIAN_STEP) -> np.ndarray:
@@ -452,6 +439,25 @@ class ClosedLoop:
         out.append(critical_value("bushing stiffness", lambda k: self._margin_with(stiffness=k), *ranges["stiffness"],
                                   unit="Nm/rad", rtol=CRITICAL_RTOL))
         return out
+
+
+def gravity_hessian(plant, context, q, h: float = 1e-6) -> np.ndarray:
+    """Hessian of the gravitational potential, -d(gravity generalized force)/dq, by central differences."""
+    def gravity(qq):
+        plant.SetPositions(context, qq)
+        return plant.CalcGravityGeneralizedForces(context)
+
+    q = np.asarray(q, float)
+    return -np.column_stack([(gravity(q + h * e) - gravity(q - h * e)) / (2 * h) for e in np.eye(q.size)])
+
+
+def length_hessian(model, q, h: float = 1e-6) -> np.ndarray:
+    """d2L/dq2 of every musculotendon path (n_muscles, n, n): central differences of the analytic
+    moment arms -dL/dq, symmetrised."""
+    q = np.asarray(q, float)
+    hess = -np.stack([(model.path_state(q + h * e).moment_arms - model.path_state(q - h * e).moment_arms) / (2 * h)
+                      for e in np.eye(q.size)], axis=2)
+    return 0.5 * (hess + hess.transpose(0, 2, 1))
 
 
 def _complex_json(value) -> dict:

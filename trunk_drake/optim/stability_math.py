@@ -22,6 +22,8 @@ import numpy as np
 
 CHEBYSHEV_NODES = 16  # collocation nodes on [-tau, 0]; the rightmost roots converge spectrally
 NEWTON_STEPS = 12
+NEWTON_ROOTS = 8  # the rightmost roots polished on the exact equation
+NEWTON_REACH = 30.0  # roots with Re(s) * tau below -NEWTON_REACH are left as discretised
 
 
 @dataclass
@@ -92,8 +94,8 @@ def characteristic_roots(a0, a1=None, delay: float = 0.0, nodes: int = CHEBYSHEV
     """Roots s of det(s I - A0 - A1 exp(-s delay)) and their right null vectors, rightmost first.
 
     Without a delay (or A1 = 0) these are the eigenvalues of A0 + A1. With one, the rightmost
-    roots of the spectral discretisation are refined by Newton's method on the exact equation;
-    roots far to the left (spurious discretisation roots among them) are returned unrefined.
+    NEWTON_ROOTS roots of the spectral discretisation are refined by Newton's method on the exact
+    equation; roots farther left (spurious discretisation roots among them) are returned as discretised.
     """
     a0 = np.asarray(a0, float)
     a1 = np.zeros_like(a0) if a1 is None else np.asarray(a1, float)
@@ -116,11 +118,10 @@ def characteristic_roots(a0, a1=None, delay: float = 0.0, nodes: int = CHEBYSHEV
             big[rows, n + p * (k - 1): n + p * k] = D[j, k] * np.eye(p)
     values, vectors = np.linalg.eig(big)
     order = np.argsort(-values.real)
-    values, vectors = values[order], vectors[:n, order]
-    keep = min(len(values), 2 * n)
-    refined = [_newton_root(a0, a1, delay, s, v) for s, v in zip(values[:keep], vectors.T[:keep])]
-    values = np.array([s for s, _ in refined])
-    vectors = np.column_stack([v for _, v in refined])
+    values, vectors = values[order], vectors[:n, order].astype(complex)
+    near = np.flatnonzero(values.real * delay > -NEWTON_REACH)[:NEWTON_ROOTS]  # far left: exp(-s tau) overflows
+    for k in near:
+        values[k], vectors[:, k] = _newton_root(a0, a1, delay, values[k], vectors[:, k])
     order = np.argsort(-values.real)
     return values[order], vectors[:, order]
 
