@@ -234,3 +234,31 @@ def test_report_names_the_reflexes_engaged_at_rest_and_critical_values(myotorso,
     assert names == {"co-activation (minimum activation)", "reflex gain scale", "bushing stiffness"}
     stiff = next(c for c in result.critical if c.name == "bushing stiffness")
     assert stiff.value is not None and 125.0 < stiff.value < 300.0  # consistent with the two cases above
+
+
+def test_short_range_stiffness_is_a_force_on_quick_stretch_that_fades():
+    """SRS in the muscle system: force gain * a * f_AL * F_max * stretch (capped), about a reference
+    length that follows the fiber with the time constant; an equilibrium is not changed by it."""
+    srs = ShortRangeStiffness()
+    model = td.load_model(dofs="all", spec=chain_spec([2.0], [0.4], [0.5]))
+    loop = ClosedLoop(model, TrunkOptions(stiffness=50.0, feedforward=np.array([0.4]), srs=srs))
+    x = loop.rest_state(np.array([0.05]))
+    port = loop.td.muscles.GetOutputPort("tendon_force")
+
+    def force_and_rate(stretch):
+        y = x.copy()
+        y[-1] -= stretch  # reference shorter than the fiber: the fiber is stretched by `stretch`
+        loop.context.SetContinuousState(y)
+        rate = loop.td.diagram.EvalTimeDerivatives(loop.context).CopyToVector()[-1]
+        return port.Eval(loop.muscle_context)[0], rate
+
+    rest, rest_rate = force_and_rate(0.0)
+    ln = loop.td.muscles.GetOutputPort("normalized_fiber_length").Eval(loop.muscle_context)[0]
+    per_stretch = srs.gain * 0.4 * thelen.active_force_length(ln) * F_MAX
+    small, rate = force_and_rate(0.5 * srs.max_stretch)
+    large, _ = force_and_rate(3.0 * srs.max_stretch)
+    assert rest_rate == 0.0
+    assert small - rest == pytest.approx(per_stretch * 0.5 * srs.max_stretch, rel=1e-9)
+    assert large - rest == pytest.approx(per_stretch * srs.max_stretch, rel=1e-9)  # detached beyond max_stretch
+    assert rate == pytest.approx(0.5 * srs.max_stretch / srs.time_constant, rel=1e-9)  # the reference follows
+    assert ShortRangeStiffness.from_reference() == srs  # the defaults are the cited constants
