@@ -103,8 +103,8 @@ class StabilityResult:
     coordinates: list[str]
     posture: np.ndarray  # requested (rad)
     equilibrium: np.ndarray  # nearest closed-loop rest posture (rad)
-    equilibrium_found: bool
-    unbalanced: np.ndarray  # generalized force (Nm) left unbalanced at the requested posture
+    equilibrium_found: bool | None  # None: no dynamic diagram (static analysis only)
+    unbalanced: np.ndarray | None  # generalized force (Nm) left unbalanced at the requested posture
     static: StaticStability
     dynamic: DynamicStability | None
     critical: list[CriticalValue]
@@ -125,7 +125,7 @@ class StabilityResult:
                 "coordinates": self.coordinates, "posture_deg": np.degrees(self.posture).tolist(),
                 "equilibrium_found": self.equilibrium_found, "equilibrium_deg": np.degrees(self.equilibrium).tolist(),
                 "equilibrium_shift_deg": shift.tolist(),
-                "unbalanced_at_posture_nm": dict(zip(self.coordinates, self.unbalanced.tolist()))},
+                "unbalanced_at_posture_nm": None if self.unbalanced is None else dict(zip(self.coordinates, self.unbalanced.tolist()))},
             "static": self.static.summary(),
             "dynamic": None if self.dynamic is None else self.dynamic.summary(),
             "critical": {c.name: c.summary() for c in self.critical},
@@ -148,10 +148,12 @@ class StabilityResult:
                          f"mode {_shape_text(self.coordinates, d.mode)})")
             if d.critical_delay is not None:
                 lines.append(f"critical reflex delay: {d.critical_delay * 1e3:.1f} ms")
-        if not self.equilibrium_found:
+        if self.equilibrium_found is None:
+            lines.append(f"no dynamic analysis: the {self.metadata.get('model', {}).get('dofs', '')} configuration has no dynamic diagram")
+        elif not self.equilibrium_found:
             lines.append("no closed-loop equilibrium near the posture: the linearisation is about the posture itself")
         for c in self.critical:
-            lines.append(f"stable for {c.summary()['text']}")
+            lines.append(("stable for " if c.value is not None else "") + c.summary()["text"])
         return lines
 
 
@@ -161,18 +163,20 @@ def stability(model, options: TrunkOptions | None = None, q=None, critical: bool
     RANGES (name -> (low, high)) for them."""
     start = time.perf_counter()
     opts = options or TrunkOptions()
-    if model.dofs == "spine3d":
-        raise ValueError("stability analysis needs a dynamic configuration (dofs='sagittal', or 'all' for user models); "
-                         "spine3d has no dynamic diagram")
+    options_json = {k: v for k, v in dataclasses.asdict(opts).items() if k not in ("feedforward", "constants", "muscle_mask")}
+    from trunk_drake.metadata import run_metadata
+
+    if model.dofs == "spine3d":  # no dynamic diagram: the static analysis at the requested posture
+        posture = np.zeros(len(model.coordinates)) if q is None else model.check_q(q)
+        static = static_analysis(model, opts, posture, rest_activations(model, opts, posture))
+        return StabilityResult(list(model.coordinates), posture, posture, None, None, static, None, [],
+                               options_json, time.perf_counter() - start, run_metadata(model))
     loop = ClosedLoop(model, opts)
     posture = loop.posture(q)
     x_eq, found, unbalanced = loop.equilibrium(posture)
     static = loop.static(x_eq)
     dynamic = loop.dynamic(x_eq)
-    found_critical = loop.critical_values({**RANGES, **(ranges or {})}) if critical else []
-    options_json = {k: v for k, v in dataclasses.asdict(opts).items() if k not in ("feedforward", "constants", "muscle_mask")}
-    from trunk_drake.metadata import run_metadata
-
+    found_critical = loop.critical_values({**RANGES, **(ranges or {})}, posture) if critical else []
     return StabilityResult(loop.coordinates, posture, loop.q_of(x_eq), found, unbalanced, static, dynamic, found_critical,
                            options_json, time.perf_counter() - start, run_metadata(model))
 
@@ -240,16 +244,15 @@ class ClosedLoop:
     def equilibrium(self, posture, max_iter: int = 30):
         """(rest state at the equilibrium nearest `posture`, found?, unbalanced force at the posture)."""
         unbalanced = self.generalized_force(self.rest_state(posture))
-        q = posture.copy()
+        q, g = posture.copy(), unbalanced
         h = 1e-7
         for _ in range(max_iter):
-            g = self.generalized_force(self.rest_state(q))
             if np.max(np.abs(g)) < 1e-9:
                 break
-            J = np.column_stack([(self.generalized_force(self.rest_state(q + h * e)) - self.generalized_force(self.rest_state(q - h * e))) / (2 * h)
-                                 for e in np.eye(self.nq)])
-            step = np.linalg.lstsq(J, -g, rcond=None)[0]
-            q = q + step
+            J = np.column_stack([(self.generalized_force(self.rest_state(q + h * e))
+                                  - self.generalized_force(self.rest_state(q - h * e))) / (2 * h) for e in np.eye(self.nq)])
+            q = q + np.linalg.lstsq(J, -g, rcond=None)[0]
+            g = self.generalized_force(self.rest_state(q))
             if np.max(np.abs(q - posture)) > MAX_EQUILIBRIUM_SHIFT or not np.all(np.isfinite(q)):
                 return self.rest_state(posture), False, unbalanced
         found = np.max(np.abs(self.generalized_force(self.rest_state(q)))) < 1e-6
@@ -258,23 +261,7 @@ class ClosedLoop:
     # ---- static ------------------------------------------------------------------
     def static(self, x) -> StaticStability:
         """Energy Hessian at rest state x (activations held)."""
-        q, a = self.q_of(x), x[self.activations]
-        path = self.base.path_state(q, np.zeros(self.nv))
-        constants = self.td.muscles.constants
-        mask = np.ones(self.n) if self.options.muscle_mask is None else np.asarray(self.options.muscle_mask, float)
-        force = thelen.rigid_tendon(a, path.lengths, path.velocities, self.params, constants).tendon_force * mask
-        slope = thelen.rigid_tendon_derivatives(a, path.lengths, path.velocities, self.params, constants).d_length * mask
-        bushing = np.zeros(self.nq)
-        b = self.td.bushings
-        bushing[b.idx] = b.k * (1.0 + 3.0 * b.cubic * (q[b.idx] - b.q0) ** 2)
-        srs = None
-        if self.options.srs is not None:
-            kin = thelen.rigid_kinematics(path.lengths, path.velocities, self.params, constants)
-            srs = mask * np.where(kin.clamped, 0.0, self.options.srs.path_stiffness(
-                thelen.clamp_activation(a, constants), kin.active_force_length, self.params.max_isometric_force,
-                self.params.optimal_fiber_length, kin.cos_pennation))
-        return static_stability(self.coordinates, gravity_hessian(self.td.plant, self.plant_context, q), bushing, force,
-                                length_hessian(self.base, q), path.moment_arms, slope, srs)
+        return static_analysis(self.base, self.options, self.q_of(x), x[self.activations], self.params)
 
     # ---- dynamic -----------------------------------------------------------------
     def jacobian(self, x, h: float = JACOBIAN_STEP) -> np.ndarray:
@@ -348,7 +335,7 @@ class ClosedLoop:
                 break
         return complex(value), d
 
-    def dynamic(self, x) -> DynamicStability:
+    def dynamic(self, x, delay_search: bool = True) -> DynamicStability:
         roots, vectors = self.rightmost(x)
         branches = {"central": complex(roots[0])}
         modes = {"central": vectors[: self.nq, 0]}
@@ -365,7 +352,7 @@ class ClosedLoop:
         branch = max(branches, key=lambda k: branches[k].real)
         result = DynamicStability(self.coordinates, roots, self.delay, branches, unit_shape(modes[branch]), branch,
                                   None, self.reflexes(x), method)
-        if result.stable:
+        if result.stable and delay_search:
             result.critical_delay = self.critical_delay(x)
         return result
 
@@ -406,8 +393,11 @@ class ClosedLoop:
         return out
 
     # ---- critical values -----------------------------------------------------------
-    def _margin_with(self, feedforward=None, gain_scale=1.0, stiffness=None) -> float:
-        """Margin (central-difference linearisation at its own equilibrium) with one change, restored after."""
+    def _margin_with(self, posture, feedforward=None, gain_scale=1.0, stiffness=None, one_sided=False) -> float:
+        """Margin at the rest state of `posture` with one change (restored after): of the central-difference
+        linearisation, or with ``one_sided`` over all branches as `dynamic` reports it. The rest state,
+        not the nearest equilibrium, because near a critical value that equilibrium runs away from the
+        posture (its stiffness matrix turns singular) while the margin stays a smooth function."""
         source = self.td.diagram.GetSubsystemByName("feedforward")
         base_ff = source.get_source_value(source.GetMyContextFromRoot(self.context)).CopyToVector()
         reflex, bushings = self.td.reflex, self.td.bushings
@@ -417,28 +407,71 @@ class ClosedLoop:
             reflex.kp, reflex.kv = self._kp * gain_scale, self._kv * gain_scale
             if stiffness is not None:
                 bushings.k = np.full_like(self._k, stiffness)
-            x, _, _ = self.equilibrium(np.zeros(self.nq))
-            return self.margin(x)
+            x = self.rest_state(posture)
+            return self.dynamic(x, delay_search=False).margin if one_sided else self.margin(x)
         finally:
             source.get_mutable_source_value(source.GetMyMutableContextFromRoot(self.context)).SetFromVector(base_ff)
             reflex.kp, reflex.kv, bushings.k = self._kp.copy(), self._kv.copy(), self._k.copy()
 
-    def critical_values(self, ranges: dict) -> list[CriticalValue]:
+    def critical_values(self, ranges: dict, posture) -> list[CriticalValue]:
         from trunk_drake.optim.static import coactivation
 
-        def coactivated(level):
+        def coactivated(level, one_sided=False):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                return self._margin_with(feedforward=coactivation(self.base, level))
+                return self._margin_with(posture, feedforward=coactivation(self.base, level), one_sided=one_sided)
 
-        out = [critical_value("co-activation (minimum activation)", coactivated, *ranges["coactivation"], unit="", rtol=CRITICAL_RTOL)]
+        searches = [("co-activation (minimum activation)", coactivated, ranges["coactivation"], "", True)]
         if np.any(self._kp) or np.any(self._kv):
-            lo, hi = ranges["reflex_gain_scale"]
-            out.append(critical_value("reflex gain scale", lambda s: self._margin_with(gain_scale=s), lo, hi, unit="x",
-                                      rtol=CRITICAL_RTOL, log=False))
-        out.append(critical_value("bushing stiffness", lambda k: self._margin_with(stiffness=k), *ranges["stiffness"],
-                                  unit="Nm/rad", rtol=CRITICAL_RTOL))
+            searches.append(("reflex gain scale", lambda s, one_sided=False: self._margin_with(posture, gain_scale=s, one_sided=one_sided),
+                             ranges["reflex_gain_scale"], "x", False))
+        searches.append(("bushing stiffness", lambda k, one_sided=False: self._margin_with(posture, stiffness=k, one_sided=one_sided),
+                         ranges["stiffness"], "Nm/rad", True))
+        out = []
+        for name, margin, (low, high), unit, log in searches:
+            found = critical_value(name, margin, low, high, unit=unit, rtol=CRITICAL_RTOL, log=log)
+            if found.value is not None:  # the bisection used the central linearisation: check the one-sided branches
+                one_sided = margin(found.value, one_sided=True)
+                if one_sided >= 0:
+                    found.note = f"central-difference margin; with one-sided kinks still {one_sided:+.3g} 1/s there"
+            out.append(found)
         return out
+
+
+def static_analysis(model, options: TrunkOptions, q, activations, params=None) -> StaticStability:
+    """Energy Hessian of `model` (any configuration) at posture q with `activations` held."""
+    q, a = np.asarray(q, float), np.asarray(activations, float)
+    params = params or muscle_parameters(model, options.strength_scale)
+    constants = options.constants
+    path = model.path_state(q, np.zeros(len(q)))
+    mask = np.ones(model.n_muscles) if options.muscle_mask is None else np.asarray(options.muscle_mask, float)
+    force = thelen.rigid_tendon(a, path.lengths, path.velocities, params, constants).tendon_force * mask
+    slope = thelen.rigid_tendon_derivatives(a, path.lengths, path.velocities, params, constants).d_length * mask
+    fe = rotation_coordinates(model)
+    bushing = np.zeros(len(q))
+    bushing[fe] = np.broadcast_to(np.asarray(options.stiffness, float), (len(fe),)) * (1.0 + 3.0 * options.cubic * q[fe] ** 2)
+    srs = None
+    if options.srs is not None:
+        kin = thelen.rigid_kinematics(path.lengths, path.velocities, params, constants)
+        srs = mask * np.where(kin.clamped, 0.0, options.srs.path_stiffness(
+            thelen.clamp_activation(a, constants), kin.active_force_length, params.max_isometric_force,
+            params.optimal_fiber_length, kin.cos_pennation))
+    return static_stability(model.coordinates, gravity_hessian(model.plant, model.plant.CreateDefaultContext(), q), bushing,
+                            force, length_hessian(model, q), path.moment_arms, slope, srs)
+
+
+def rest_activations(model, options: TrunkOptions, q) -> np.ndarray:
+    """Steady activations at posture q without a diagram: feed-forward plus the stretch-reflex tone."""
+    from trunk_drake.diagram import _desired_length
+    from trunk_drake.systems.reflex import StretchReflex
+
+    params = muscle_parameters(model, options.strength_scale)
+    path = model.path_state(q, np.zeros(len(q)))
+    ln = thelen.rigid_kinematics(path.lengths, path.velocities, params, options.constants).normalized_fiber_length
+    reflex = StretchReflex(model.n_muscles, options.per_muscle(model, options.kp), options.per_muscle(model, options.kv),
+                           _desired_length(model, options, params))
+    ff = options.feedforward if options.feedforward is not None else np.full(model.n_muscles, options.constants.minimum_activation)
+    return thelen.clamp_activation(np.asarray(ff, float) + reflex.feedback(ln, np.zeros(model.n_muscles)), options.constants)
 
 
 def gravity_hessian(plant, context, q, h: float = 1e-6) -> np.ndarray:

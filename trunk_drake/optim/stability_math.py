@@ -185,8 +185,9 @@ class CriticalValue:
     def summary(self) -> dict:
         found = self.value is not None
         return {"value": self.value, "unit": self.unit, "range": [self.low, self.high],
-                "text": (f"{self.name} >= {self.value:.4g} {self.unit}" if found
-                         else f"none within [{self.low:.4g}, {self.high:.4g}] {self.unit}") + (f" ({self.note})" if self.note else ""),
+                "text": ((f"{self.name} >= {self.value:.4g} {self.unit}" if found
+                          else f"{self.name}: none within [{self.low:.4g}, {self.high:.4g}] {self.unit}").rstrip()
+                         + (f" ({self.note})" if self.note else "")),
                 "evaluations": self.evaluations}
 
 
