@@ -216,7 +216,7 @@ def test_rightmost_root_predicts_growth_or_decay_of_a_small_perturbation(myotors
     mode = np.real(vectors[:, 0]) * np.sign(np.real(vectors[:5, 0]).sum())
     times = np.linspace(0.0, 1.5, 151)
     for direction in (1.0, -1.0):
-        rate, shape = loop.branch(x_eq, direction * mode)
+        rate, shape = loop.branch(x_eq, roots[0], direction * mode)
         rotation = simulate_from(myotorso, options, x_eq + np.radians(0.1) * shape / np.abs(shape[:5]).max(), 1.5, times)
         deviation = np.abs(rotation - x_eq[:5].sum())
         fitted = np.polyfit(times[times > 0.2], np.log(deviation[times > 0.2]), 1)[0]

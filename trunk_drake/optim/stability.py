@@ -28,18 +28,19 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 from trunk_drake.diagram import TrunkOptions, build_trunk_diagram, plant_model_for, rotation_coordinates
 from trunk_drake.gap.linear import time_derivatives
 from trunk_drake.muscle import thelen
 from trunk_drake.optim.stability_math import (
-    CriticalValue, StaticStability, characteristic_roots, critical_value, static_stability, unit_shape,
+    CriticalValue, StaticStability, characteristic_roots, critical_value, refine_root, static_stability, unit_shape,
 )
 from trunk_drake.systems.muscles import muscle_parameters
 
@@ -307,48 +308,50 @@ class ClosedLoop:
     def rightmost(self, x, delay=None, h=JACOBIAN_STEP):
         """Characteristic roots and vectors of the linearisation at x."""
         A0, A1 = self.split(self.jacobian(x, h))
-        with threadpool_limits(1):  # multi-threaded LAPACK is 10-20x slower on these sizes under load
+        with single_threaded_blas():
             return characteristic_roots(A0, A1, self.delay if delay is None else delay)
 
     def margin(self, x) -> float:
         """Largest real part of the central-difference linearisation's roots (1/s)."""
         return float(self.rightmost(x)[0][0].real)
 
-    def branch(self, x, vector):
-        """Rightmost real root with its kinks resolved along `vector` (a real mode), and that mode."""
-        d = np.real(vector)
-        value = np.nan
+    def branch(self, x, value, vector):
+        """The real root `value` (with mode `vector`) re-linearised with its kinks resolved along the
+        mode, until mode and kinks agree: (root, mode)."""
+        d, value = np.real(vector), float(np.real(value))
         for _ in range(BRANCH_ITERATIONS):
             d = d / np.max(np.abs(d[: self.nq]))
-            roots, vectors = self.rightmost(x + DISPLACEMENT * d, h=BRANCH_STEP)
-            real = np.flatnonzero(np.abs(roots.imag) <= REAL_TOLERANCE * np.maximum(1.0, np.abs(roots.real)))
-            if not real.size:
-                return complex(roots[0]), d
-            candidates = np.real(vectors[:, real])
-            fit = np.abs(candidates.T @ d) / np.linalg.norm(candidates, axis=0)
-            best = real[int(np.argmax(fit))]
-            new = np.real(vectors[:, best])
-            new = new if new @ d > 0 else -new
-            converged = abs(roots[best].real - value) <= 1e-3 * abs(roots[best].real) + 1e-9
-            value, d = roots[best].real, new
+            A0, A1 = self.split(self.jacobian(x + DISPLACEMENT * d, BRANCH_STEP))
+            with single_threaded_blas():
+                root, new = refine_root(A0, A1, self.delay, value, d)
+            new = np.real(new) if np.real(new) @ d > 0 else -np.real(new)
+            converged = abs(root.real - value) <= 1e-3 * abs(root.real) + 1e-9
+            value, d = float(root.real), new
             if converged:
                 break
         return complex(value), d
 
-    def dynamic(self, x, delay_search: bool = True) -> DynamicStability:
+    def one_sided_margin(self, x) -> tuple[np.ndarray, dict, dict]:
+        """Roots of the central linearisation, and its rightmost root and, if that is real, each direction's
+        one-sided branch: (roots, {branch: root}, {branch: mode over the coordinates})."""
         roots, vectors = self.rightmost(x)
         branches = {"central": complex(roots[0])}
         modes = {"central": vectors[: self.nq, 0]}
-        method = ("characteristic roots of the central-difference linearisation of the diagram"
-                  + (f"; reflex delay {self.delay * 1e3:.1f} ms: Chebyshev spectral discretisation + Newton on the exact "
-                     "characteristic equation" if self.delay > 0 else ""))
         if abs(roots[0].imag) <= REAL_TOLERANCE * max(1.0, abs(roots[0].real)):
             mode = np.real(vectors[:, 0])
             flexion = np.sign(mode[self.fe].sum()) or 1.0
             for name, sign in (("flexion", flexion), ("extension", -flexion)):
-                value, shape = self.branch(x, sign * mode)
+                value, shape = self.branch(x, roots[0], sign * mode)
                 branches[name], modes[name] = value, shape[: self.nq]
-            method += "; the real rightmost root re-linearised along the mode in each direction (kinks one-sided)"
+        return roots, branches, modes
+
+    def dynamic(self, x, delay_search: bool = True) -> DynamicStability:
+        roots, branches, modes = self.one_sided_margin(x)
+        method = ("characteristic roots of the central-difference linearisation of the diagram"
+                  + (f"; reflex delay {self.delay * 1e3:.1f} ms: Chebyshev spectral discretisation + Newton on the exact "
+                     "characteristic equation" if self.delay > 0 else "")
+                  + ("; the real rightmost root re-linearised along the mode in each direction (kinks one-sided)"
+                     if len(branches) > 1 else ""))
         branch = max(branches, key=lambda k: branches[k].real)
         result = DynamicStability(self.coordinates, roots, self.delay, branches, unit_shape(modes[branch]), branch,
                                   None, self.reflexes(x), method)
@@ -363,7 +366,7 @@ class ClosedLoop:
             return None
 
         def unstable(tau):
-            with threadpool_limits(1):
+            with single_threaded_blas():
                 return characteristic_roots(A0, A1, tau)[0][0].real >= 0
 
         grid = np.linspace(max(self.delay, DELAY_RANGE[0]), DELAY_RANGE[1], 13)
@@ -393,11 +396,10 @@ class ClosedLoop:
         return out
 
     # ---- critical values -----------------------------------------------------------
-    def _margin_with(self, posture, feedforward=None, gain_scale=1.0, stiffness=None, one_sided=False) -> float:
-        """Margin at the rest state of `posture` with one change (restored after): of the central-difference
-        linearisation, or with ``one_sided`` over all branches as `dynamic` reports it. The rest state,
-        not the nearest equilibrium, because near a critical value that equilibrium runs away from the
-        posture (its stiffness matrix turns singular) while the margin stays a smooth function."""
+    def _margin_with(self, posture, feedforward=None, gain_scale=1.0, stiffness=None) -> float:
+        """Margin (over the one-sided branches, as `dynamic` reports it) at the rest state of `posture` with
+        one change, restored after. The rest state, not the nearest equilibrium: near a critical value that
+        equilibrium runs away from the posture (its stiffness matrix turns singular)."""
         source = self.td.diagram.GetSubsystemByName("feedforward")
         base_ff = source.get_source_value(source.GetMyContextFromRoot(self.context)).CopyToVector()
         reflex, bushings = self.td.reflex, self.td.bushings
@@ -408,7 +410,7 @@ class ClosedLoop:
             if stiffness is not None:
                 bushings.k = np.full_like(self._k, stiffness)
             x = self.rest_state(posture)
-            return self.dynamic(x, delay_search=False).margin if one_sided else self.margin(x)
+            return max(r.real for r in self.one_sided_margin(x)[1].values())
         finally:
             source.get_mutable_source_value(source.GetMyMutableContextFromRoot(self.context)).SetFromVector(base_ff)
             reflex.kp, reflex.kv, bushings.k = self._kp.copy(), self._kv.copy(), self._k.copy()
@@ -416,26 +418,18 @@ class ClosedLoop:
     def critical_values(self, ranges: dict, posture) -> list[CriticalValue]:
         from trunk_drake.optim.static import coactivation
 
-        def coactivated(level, one_sided=False):
+        def coactivated(level):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                return self._margin_with(posture, feedforward=coactivation(self.base, level), one_sided=one_sided)
+                return self._margin_with(posture, feedforward=coactivation(self.base, level))
 
         searches = [("co-activation (minimum activation)", coactivated, ranges["coactivation"], "", True)]
         if np.any(self._kp) or np.any(self._kv):
-            searches.append(("reflex gain scale", lambda s, one_sided=False: self._margin_with(posture, gain_scale=s, one_sided=one_sided),
+            searches.append(("reflex gain scale", lambda s: self._margin_with(posture, gain_scale=s),
                              ranges["reflex_gain_scale"], "x", False))
-        searches.append(("bushing stiffness", lambda k, one_sided=False: self._margin_with(posture, stiffness=k, one_sided=one_sided),
-                         ranges["stiffness"], "Nm/rad", True))
-        out = []
-        for name, margin, (low, high), unit, log in searches:
-            found = critical_value(name, margin, low, high, unit=unit, rtol=CRITICAL_RTOL, log=log)
-            if found.value is not None:  # the bisection used the central linearisation: check the one-sided branches
-                one_sided = margin(found.value, one_sided=True)
-                if one_sided >= 0:
-                    found.note = f"central-difference margin; with one-sided kinks still {one_sided:+.3g} 1/s there"
-            out.append(found)
-        return out
+        searches.append(("bushing stiffness", lambda k: self._margin_with(posture, stiffness=k), ranges["stiffness"], "Nm/rad", True))
+        return [critical_value(name, margin, low, high, unit=unit, rtol=CRITICAL_RTOL, log=log)
+                for name, margin, (low, high), unit, log in searches]
 
 
 def static_analysis(model, options: TrunkOptions, q, activations, params=None) -> StaticStability:
@@ -491,6 +485,16 @@ def length_hessian(model, q, h: float = 1e-6) -> np.ndarray:
     hess = -np.stack([(model.path_state(q + h * e).moment_arms - model.path_state(q - h * e).moment_arms) / (2 * h)
                       for e in np.eye(q.size)], axis=2)
     return 0.5 * (hess + hess.transpose(0, 2, 1))
+
+
+@functools.cache
+def _blas_controller() -> ThreadpoolController:
+    return ThreadpoolController()  # finds the BLAS libraries once (a scan costs ~10 ms)
+
+
+def single_threaded_blas():
+    """Context: one BLAS thread. Multi-threaded LAPACK is 10-20x slower on these sizes on a loaded machine."""
+    return _blas_controller().limit(limits=1)
 
 
 def _complex_json(value) -> dict:

@@ -121,7 +121,7 @@ def characteristic_roots(a0, a1=None, delay: float = 0.0, nodes: int = CHEBYSHEV
     values, vectors = values[order], vectors[:n, order].astype(complex)
     near = np.flatnonzero(values.real * delay > -NEWTON_REACH)[:NEWTON_ROOTS]  # far left: exp(-s tau) overflows
     for k in near:
-        values[k], vectors[:, k] = _newton_root(a0, a1, delay, values[k], vectors[:, k])
+        values[k], vectors[:, k] = refine_root(a0, a1, delay, values[k], vectors[:, k])
     order = np.argsort(-values.real)
     return values[order], vectors[:, order]
 
@@ -137,12 +137,34 @@ def _chebyshev(nodes: int, delay: float):
     return delay / 2.0 * (x - 1.0), D * (2.0 / delay)
 
 
-def _newton_root(a0, a1, delay, s, v):
-    """Newton on T(s) v = 0, T(s) = s I - A0 - A1 exp(-s delay), with the normalisation c^H v = 1."""
+def refine_root(a0, a1, delay, s, v):
+    """The root and null vector nearest (s, v): Newton on T(s) v = 0, T(s) = s I - A0 - A1 exp(-s delay),
+    with the normalisation c^H v = 1 (in real arithmetic when s and v are real)."""
     n = a0.shape[0]
-    v = np.asarray(v, complex)
+    real = np.isreal(s) and np.all(np.isreal(v))
+    dtype = float if real else complex
+    s, v = (float(np.real(s)), np.real(v).astype(float)) if real else (complex(s), np.asarray(v, complex))
     if not np.any(v):
         return s, v
+    c = (v / (v @ v.conj())).conj()
+    J = np.zeros((n + 1, n + 1), dtype)
+    J[n, :n] = c
+    rhs = np.empty(n + 1, dtype)
+    for _ in range(NEWTON_STEPS):
+        e = np.exp(-s * delay)
+        J[:n, :n] = -a0 - a1 * e if delay > 0 else -(a0 + a1)
+        J[np.arange(n), np.arange(n)] += s
+        # [T  T' v; c^H 0] [dv; ds] = -[T v; c^H v - 1],  T' = I + delay A1 exp(-s delay)
+        J[:n, n] = v + (delay * e) * (a1 @ v)
+        rhs[:n], rhs[n] = -(J[:n, :n] @ v), 1.0 - c @ v
+        try:
+            step = np.linalg.solve(J, rhs)
+        except np.linalg.LinAlgError:
+            break
+        v, s = v + step[:n], s + step[n]
+        if abs(step[n]) <= 1e-12 * max(1.0, abs(s)):
+            break
+    return s, v
     c = v / (v @ v.conj())
     eye = np.eye(n)
     for _ in range(NEWTON_STEPS):
@@ -192,9 +214,10 @@ class CriticalValue:
 
 
 def critical_value(name: str, margin, low: float, high: float, unit: str = "", rtol: float = 0.02,
-                   log: bool = True) -> CriticalValue:
-    """Bisection on `margin` (a function of the parameter; stable where < 0), assuming the stable set is
-    an upper interval [critical, high]. Returns `low` itself if already stable there, None if `high` is not."""
+                   log: bool = True, grid: int = 6) -> CriticalValue:
+    """The smallest value in [low, high] at which `margin(value)` < 0 (stable): a scan of `grid` points
+    (log-spaced if `log` and low > 0) from `low` up to the first stable one, then bisection to `rtol`
+    between it and the unstable point below. A stable window narrower than the scan's spacing can be missed."""
     count = 0
 
     def stable(x):
@@ -202,15 +225,14 @@ def critical_value(name: str, margin, low: float, high: float, unit: str = "", r
         count += 1
         return margin(x) < 0.0
 
-    if not stable(high):
+    points = np.geomspace(low, high, grid) if log and low > 0 else np.linspace(low, high, grid)
+    first = next((k for k, p in enumerate(points) if stable(p)), None)
+    if first is None:
         return CriticalValue(name, None, low, high, unit, count)
-    if stable(low):
-        return CriticalValue(name, low, low, high, unit, count, "already stable at the lower end")
-    lo, hi = low, high
+    if first == 0:
+        return CriticalValue(name, float(low), low, high, unit, count, "already stable at the lower end")
+    lo, hi = points[first - 1], points[first]
     while (hi - lo) > rtol * hi:
         mid = np.sqrt(lo * hi) if log and lo > 0 else 0.5 * (lo + hi)
-        if stable(mid):
-            hi = mid
-        else:
-            lo = mid
+        lo, hi = (lo, mid) if stable(mid) else (mid, hi)
     return CriticalValue(name, float(hi), low, high, unit, count)
