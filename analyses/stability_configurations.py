@@ -21,7 +21,7 @@ from trunk_drake import reproduce as rp
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.metadata import json_default
 from trunk_drake.muscle.short_range import ShortRangeStiffness
-from trunk_drake.optim.stability import stability
+from trunk_drake.optim.stability import DELAY_RANGE, stability
 from trunk_drake.plots import plot_stability
 
 
@@ -49,9 +49,10 @@ def row(name, summary) -> str:
     root = d["rightmost_root"]
     kind = f"{root['frequency_hz']:.2f} Hz" if root["frequency_hz"] > 1e-6 else f"real, {root['branch']}"
     crit = "; ".join(v["text"] for v in c.values())
-    delay = f"{1e3 * d['critical_delay_s']:.0f} ms" if d["critical_delay_s"] else "-"
+    delay = (f"{1e3 * d['critical_delay_s']:.0f} ms" if d["critical_delay_s"]
+             else f"none up to {1e3 * DELAY_RANGE[1]:.0f} ms" if d["stable"] else "-")
     return (f"| {name} | {summary['static']['stability_index_nm_per_rad']:+.0f} | {'stable' if d['stable'] else 'unstable'} "
-            f"| {d['margin_per_s']:+.3f} ({kind}) | {delay} | {crit} |")
+            f"| {d['margin_per_s']:+.3f} ({kind}) | {delay} | {sum(g['at_threshold'] for g in d['reflexes'].values())} | {crit} |")
 
 
 def main():
@@ -69,8 +70,8 @@ def main():
             plot_stability(result, out)
         print(name, "\n  " + "\n  ".join(result.verdict()), flush=True)
     (out / "summary.json").write_text(json.dumps(results, indent=2, default=json_default))
-    header = ("| configuration | static index (Nm/rad) | dynamic | margin (1/s) | critical delay | what makes it stable |\n"
-              "|---|---|---|---|---|---|")
+    header = ("| configuration | static index (Nm/rad) | dynamic | margin (1/s) | critical delay | reflexes at threshold "
+              "| what makes it stable |\n|---|---|---|---|---|---|---|")
     (out / "summary.md").write_text(header + "\n" + "\n".join(lines) + "\n")
     print(header + "\n" + "\n".join(lines))
 

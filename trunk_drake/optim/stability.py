@@ -45,12 +45,13 @@ from trunk_drake.optim.stability_math import (
 from trunk_drake.systems.muscles import muscle_parameters
 
 JACOBIAN_STEP = 1e-7
-DISPLACEMENT = 1e-4  # rad: how far along a real mode the kinks are resolved (0.006 deg)
+DISPLACEMENT = 1e-4  # rad (0.006 deg, largest level): how far along a real mode its kinks are resolved
 BRANCH_STEP = 1e-9  # finite-difference step there, far below the displaced kink arguments
 BRANCH_ITERATIONS = 4
 EQUILIBRIUM_TOLERANCE = 1e-8  # rad/s^2
 MAX_EQUILIBRIUM_SHIFT = 0.35  # rad (20 deg): farther, the posture is not "near" an equilibrium
 REAL_TOLERANCE = 1e-6
+THRESHOLD_DEG = 0.1  # a position reflex whose set point is within this rotation of every level is "at threshold"
 RANGES = {"coactivation": (0.01, 0.3), "reflex_gain_scale": (0.0, 20.0), "stiffness": (1.0, 3000.0)}
 CRITICAL_RTOL = 0.02
 DELAY_RANGE = (0.0, 0.3)  # s, searched for the critical delay
@@ -149,6 +150,11 @@ class StabilityResult:
                          f"mode {_shape_text(self.coordinates, d.mode)})")
             if d.critical_delay is not None:
                 lines.append(f"critical reflex delay: {d.critical_delay * 1e3:.1f} ms")
+            at_threshold = sum(g["at_threshold"] for g in d.reflexes.values())
+            if at_threshold:
+                lines.append(f"caution: {at_threshold} position reflexes switch on or off within a {THRESHOLD_DEG:g} deg rotation "
+                             "(set point at the rest length): the growth rate of a perturbation depends on its amplitude and "
+                             "the linearisation may not predict it")
         if self.equilibrium_found is None:
             lines.append(f"no dynamic analysis: the {self.metadata.get('model', {}).get('dofs', '')} configuration has no dynamic diagram")
         elif not self.equilibrium_found:
@@ -380,10 +386,14 @@ class ClosedLoop:
         return float(hi)
 
     def reflexes(self, x) -> dict:
-        """Per group: muscles with a position reflex (kp > 0), those engaged at rest (l_n > l_d), mean l_n - l_d."""
+        """Per group: muscles with a position reflex (kp > 0), those engaged at rest (l_n > l_d), those
+        whose set point lies within the fiber excursion of a THRESHOLD_DEG rotation of every level (there
+        the reflex switches within a small perturbation: the margin depends on its amplitude), mean l_n - l_d."""
         self.context.SetContinuousState(x)
         ln = self.td.muscles.GetOutputPort("normalized_fiber_length").Eval(self.muscle_context)
         stretch = ln - self.td.reflex.l_desired
+        path = self.td.paths.GetOutputPort("path_state").Eval(self.td.paths.GetMyContextFromRoot(self.context))
+        excursion = np.radians(THRESHOLD_DEG) * np.abs(path.moment_arms).sum(axis=1) / self.params.optimal_fiber_length
         out = {}
         index = {m: i for i, m in enumerate(self.base.muscles)}
         for group, members in self.base.groups.items():
@@ -391,6 +401,7 @@ class ClosedLoop:
             with_kp = idx[self.td.reflex.kp[idx] > 0]
             engaged = with_kp[stretch[with_kp] > 0]
             out[group] = {"muscles": int(len(idx)), "with_position_reflex": int(len(with_kp)), "engaged_at_rest": int(len(engaged)),
+                          "at_threshold": int(np.sum(np.abs(stretch[with_kp]) < excursion[with_kp])),
                           "mean_stretch_beyond_set_point": float(stretch[idx].mean()),
                           "engaged": [self.base.muscles[i] for i in engaged]}
         return out
