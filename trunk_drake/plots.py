@@ -92,11 +92,16 @@ def plot_fit(result, out_dir) -> dict:
     ax.set_xlabel("evaluated gain sets")
     ax.set_ylabel("best cost so far")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    files["convergence_plot"] = out / "fit_convergence.png"
-    fig.savefig(files["convergence_plot"], dpi=110)
-    plt.close(fig)
+    files["convergence_plot"] = save(fig, out / "fit_convergence.png")
     return files
+
+
+def save(fig, path) -> Path:
+    """Lay out, write (110 dpi) and close a figure; returns its path."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
 
 
 def plot_stability(result, out_dir) -> dict:
@@ -118,10 +123,7 @@ def plot_stability(result, out_dir) -> dict:
         ax.set_ylabel("imaginary part (Hz)")
         ax.set_title(f"closed-loop roots: {'stable' if dyn.stable else 'unstable'}, margin {dyn.margin:+.3g} 1/s", fontsize=10)
         ax.legend(fontsize=7)
-        fig.tight_layout()
-        files["roots_plot"] = out / "stability_roots.png"
-        fig.savefig(files["roots_plot"], dpi=110)
-        plt.close(fig)
+        files["roots_plot"] = save(fig, out / "stability_roots.png")
     fig, ax = plt.subplots(figsize=(6.5, 3.8))
     x = np.arange(len(result.coordinates))
     shapes = {f"static (index {result.static.stability_index:+.0f} Nm/rad)": result.static.least_stable_mode}
@@ -134,8 +136,5 @@ def plot_stability(result, out_dir) -> dict:
     ax.set_xticks(x, result.coordinates, rotation=45 if len(x) > 6 else 0, fontsize=8)
     ax.set_ylabel("least-stable mode (largest = 1)")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    files["mode_plot"] = out / "stability_mode.png"
-    fig.savefig(files["mode_plot"], dpi=110)
-    plt.close(fig)
+    files["mode_plot"] = save(fig, out / "stability_mode.png")
     return files

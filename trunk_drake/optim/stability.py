@@ -13,16 +13,20 @@
   ``R^T diag(dF/dL) R`` with the Thelen force-length slope and, if switched on, short-range
   stiffness. Reflexes are not part of it.
 * **Dynamic**: the characteristic roots of the closed loop linearised by central differences of
-  the real diagram's time derivatives (`gap.linear.state_jacobian`), with the stretch reflex
+  the real diagram's time derivatives (`ClosedLoop.jacobian`, equal to `gap.linear.state_jacobian`
+  at a fifteenth of its evaluations), with the stretch reflex
   (the only path from q, v to the activations' rates) as the delayed part (see
   `stability_math.characteristic_roots`). The one-sided reflex ``(v)+``, the activation/
   deactivation rates and the force-velocity curve have kinks at rest; central differences give
   their mean slopes, the describing function of a symmetric oscillation. A real (non-oscillating)
   mode keeps every kink on one side, so a real rightmost root is refined for each direction
   (flexion, extension) by re-linearising slightly displaced along the mode until mode and kinks
-  agree: that is the rate at which a small perturbation grows or decays in a simulation.
-* **Critical values** by bisection on the margin: co-activation level, a uniform scale of the
-  reflex gains, bushing stiffness, each with the others held; the critical delay when stable.
+  agree: that is the rate at which a small perturbation grows or decays in a simulation. Where
+  position reflexes sit at their set point (l_d = "neutral") the rate depends on the amplitude and
+  the report says so.
+* **Critical values**: the smallest co-activation level, uniform scale of the reflex gains and
+  bushing stiffness (each with the others held) at which that margin turns negative, by a scan from
+  the lower end and bisection, at the posture's rest state; the critical reflex delay when stable.
 """
 
 from __future__ import annotations
@@ -36,7 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from trunk_drake.diagram import TrunkOptions, build_trunk_diagram, plant_model_for, rotation_coordinates
+from trunk_drake.diagram import TrunkOptions, build_trunk_diagram, rotation_coordinates
 from trunk_drake.gap.linear import time_derivatives
 from trunk_drake.muscle import thelen
 from trunk_drake.optim.stability_math import (
@@ -48,7 +52,8 @@ JACOBIAN_STEP = 1e-7
 DISPLACEMENT = 1e-4  # rad (0.006 deg, largest level): how far along a real mode its kinks are resolved
 BRANCH_STEP = 1e-9  # finite-difference step there, far below the displaced kink arguments
 BRANCH_ITERATIONS = 4
-EQUILIBRIUM_TOLERANCE = 1e-8  # rad/s^2
+EQUILIBRIUM_TOLERANCE = 1e-9  # Nm: Newton stops below this unbalanced generalized force
+EQUILIBRIUM_ACCEPTED = 1e-6  # Nm: an equilibrium counts as found below this
 MAX_EQUILIBRIUM_SHIFT = 0.35  # rad (20 deg): farther, the posture is not "near" an equilibrium
 REAL_TOLERANCE = 1e-6
 THRESHOLD_DEG = 0.1  # a position reflex whose set point is within this rotation of every level is "at threshold"
@@ -254,7 +259,7 @@ class ClosedLoop:
         q, g = posture.copy(), unbalanced
         h = 1e-7
         for _ in range(max_iter):
-            if np.max(np.abs(g)) < 1e-9:
+            if np.max(np.abs(g)) < EQUILIBRIUM_TOLERANCE:
                 break
             J = np.column_stack([(self.generalized_force(self.rest_state(q + h * e))
                                   - self.generalized_force(self.rest_state(q - h * e))) / (2 * h) for e in np.eye(self.nq)])
@@ -262,7 +267,7 @@ class ClosedLoop:
             g = self.generalized_force(self.rest_state(q))
             if np.max(np.abs(q - posture)) > MAX_EQUILIBRIUM_SHIFT or not np.all(np.isfinite(q)):
                 return self.rest_state(posture), False, unbalanced
-        found = np.max(np.abs(self.generalized_force(self.rest_state(q)))) < 1e-6
+        found = np.max(np.abs(self.generalized_force(self.rest_state(q)))) < EQUILIBRIUM_ACCEPTED
         return self.rest_state(q if found else posture), bool(found), unbalanced
 
     # ---- static ------------------------------------------------------------------
@@ -316,10 +321,6 @@ class ClosedLoop:
         A0, A1 = self.split(self.jacobian(x, h))
         with single_threaded_blas():
             return characteristic_roots(A0, A1, self.delay if delay is None else delay)
-
-    def margin(self, x) -> float:
-        """Largest real part of the central-difference linearisation's roots (1/s)."""
-        return float(self.rightmost(x)[0][0].real)
 
     def branch(self, x, value, vector):
         """The real root `value` (with mode `vector`) re-linearised with its kinks resolved along the

@@ -165,29 +165,6 @@ def refine_root(a0, a1, delay, s, v):
         if abs(step[n]) <= 1e-12 * max(1.0, abs(s)):
             break
     return s, v
-    c = v / (v @ v.conj())
-    eye = np.eye(n)
-    for _ in range(NEWTON_STEPS):
-        e = np.exp(-s * delay)
-        T = s * eye - a0 - a1 * e
-        dT = eye + delay * a1 * e
-        # [T  dT v; c^H 0] [dv; ds] = -[T v; c^H v - 1]
-        J = np.zeros((n + 1, n + 1), complex)
-        J[:n, :n], J[:n, n], J[n, :n] = T, dT @ v, c.conj()
-        rhs = -np.concatenate([T @ v, [c.conj() @ v - 1.0]])
-        try:
-            step = np.linalg.solve(J, rhs)
-        except np.linalg.LinAlgError:
-            break
-        v, s = v + step[:n], s + step[n]
-        if abs(step[n]) <= 1e-12 * max(1.0, abs(s)):
-            break
-    return s, v
-
-
-def spectral_abscissa(a0, a1=None, delay: float = 0.0) -> float:
-    """Largest real part of the characteristic roots (1/s): < 0 asymptotically stable."""
-    return float(characteristic_roots(a0, a1, delay)[0][0].real)
 
 
 # ------------------------------------------------------------------------------- bisection
