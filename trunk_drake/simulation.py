@@ -296,7 +296,9 @@ def load_reflex_gains(path) -> dict[str, dict[str, float]]:
         data = data[name]
     missing = [k for k in ("kp", "kv") if k not in data]
     if missing:
-        raise ValueError(f"{p}{'#' + name if name else ''} lacks the {missing} table(s); expected [kp] and [kv] per muscle group")
+        sets = sorted(k for k, v in data.items() if isinstance(v, dict) and {"kp", "kv"} <= set(v))
+        hint = f"; it holds the sets {sets}: pick one with {p}#NAME" if sets and not name else ""
+        raise ValueError(f"{p}{'#' + name if name else ''} lacks the {missing} table(s); expected [kp] and [kv] per muscle group{hint}")
     return {"kp": dict(data["kp"]), "kv": dict(data["kv"])}
 
 

@@ -157,9 +157,9 @@ class StabilityResult:
                 lines.append(f"critical reflex delay: {d.critical_delay * 1e3:.1f} ms")
             at_threshold = sum(g["at_threshold"] for g in d.reflexes.values())
             if at_threshold:
-                lines.append(f"caution: {at_threshold} position reflexes switch on or off within a {THRESHOLD_DEG:g} deg rotation "
-                             "(set point at the rest length): the growth rate of a perturbation depends on its amplitude and "
-                             "the linearisation may not predict it")
+                lines.append(f"caution: {at_threshold} position reflexes have their set point within a {THRESHOLD_DEG:g} deg "
+                             "rotation of the rest length, so they switch on or off during a small perturbation: its growth "
+                             "rate then depends on its amplitude and the linearisation may not predict it")
         if self.equilibrium_found is None:
             lines.append(f"no dynamic analysis: the {self.metadata.get('model', {}).get('dofs', '')} configuration has no dynamic diagram")
         elif not self.equilibrium_found:
