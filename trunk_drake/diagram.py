@@ -17,7 +17,7 @@ from pydrake.systems.primitives import Adder, ConstantVectorSource, VectorLogSin
 from trunk_drake.model.plant import LEVELS
 from trunk_drake.muscle.short_range import ShortRangeStiffness
 from trunk_drake.muscle.thelen import ThelenConstants
-from trunk_drake.systems.bushing import DEFAULT_DAMPING, DEFAULT_STIFFNESS, BushingStiffening, intervertebral_bushings
+from trunk_drake.systems.bushing import DEFAULT_DAMPING, DEFAULT_STIFFNESS, IntervertebralBushings
 from trunk_drake.systems.delay import TransportDelay
 from trunk_drake.systems.muscles import MuscleSystem, muscle_parameters
 from trunk_drake.systems.paths import MusclePathSystem
@@ -74,7 +74,7 @@ class TrunkDiagram:
     paths: MusclePathSystem
     muscles: MuscleSystem
     reflex: StretchReflex
-    bushings: object  # the linear bushings (an AffineSystem of [q; v])
+    bushings: IntervertebralBushings
     perturbation: object | None
     loggers: dict[str, VectorLogSink]
     fe_indices: np.ndarray  # indices of the lumbar flexion-extension coordinates in q
@@ -168,10 +168,12 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
             port = delay.get_output_port(0)
         feedback.append(port)
     mixer = builder.AddNamedSystem("excitation", ExcitationMixer(n, len(feedback), opts.constants.minimum_activation))
-    bushings = builder.AddNamedSystem("bushings", intervertebral_bushings(nq, nv, fe, opts.stiffness, opts.damping))
+    bushings = builder.AddNamedSystem(
+        "bushings", IntervertebralBushings(nq, nv, fe, opts.stiffness, opts.damping, cubic=opts.cubic)
+    )
 
     builder.Connect(plant.get_state_output_port(), paths.get_input_port())
-    builder.Connect(plant.get_state_output_port(), bushings.get_input_port())
+    builder.Connect(plant.get_state_output_port(), bushings.get_input_port(0))
     builder.Connect(paths.GetOutputPort("path_state"), muscles.GetInputPort("path_state"))
     for name in ("normalized_fiber_length", "normalized_fiber_velocity"):
         _connect_delayed(builder, muscles.GetOutputPort(name), reflex.GetInputPort(name), opts.reflex_delay, name, n)
@@ -180,13 +182,7 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
         builder.Connect(port, mixer.GetInputPort(f"feedback_{k}"))
     builder.Connect(mixer.GetOutputPort("excitation"), muscles.GetInputPort("excitation"))
 
-    forces = [muscles.GetOutputPort("generalized_force"), bushings.get_output_port()]
-    if opts.cubic < 0:
-        raise ValueError(f"cubic bushing coefficient must be >= 0, got {opts.cubic}")
-    if opts.cubic > 0:
-        stiffening = builder.AddNamedSystem("bushing_stiffening", BushingStiffening(nq, nv, fe, opts.stiffness, opts.cubic))
-        builder.Connect(plant.get_state_output_port(), stiffening.get_input_port())
-        forces.append(stiffening.get_output_port())
+    forces = [muscles.GetOutputPort("generalized_force"), bushings.GetOutputPort("generalized_force")]
     pert = None
     if pelvis_mode == "prescribed":
         direction = _anterior_direction(base)

@@ -1,13 +1,13 @@
 """Excitation: feed-forward plus feedback channels, and the thesis' stretch reflex (seed eq. 3.2).
 
-Both are small Diagrams of Drake's compiled primitives (no Python per evaluation).
+The mixer is a small Diagram of Drake's compiled primitives (no Python per evaluation).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import Adder, ConstantVectorSource, Gain, Saturation
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import Adder, Saturation
 
 
 def gains_by_group(model, values: dict[str, float], default: float = 0.0) -> np.ndarray:
@@ -25,12 +25,13 @@ def gains_by_group(model, values: dict[str, float], default: float = 0.0) -> np.
     return gains
 
 
-class StretchReflex(Diagram):
+class StretchReflex(LeafSystem):
     """The Muscle Fiber Stretch Controller: feedback = kp (l_n - l_d)+ + kv (dl_n)+.
 
     Inputs ``normalized_fiber_length`` (l / l_opt) and ``normalized_fiber_velocity``
     (v / (v_max l_opt)); output ``feedback`` (n). ``kp``, ``kv``, ``l_desired`` are per-muscle
     arrays (or scalars). A transport delay is added by the diagram builder on the inputs.
+    (A LeafSystem, not compiled primitives: the stability analysis rescales ``kp`` and ``kv`` in place.)
     """
 
     def __init__(self, n: int, kp, kv, l_desired=1.0):
@@ -38,27 +39,15 @@ class StretchReflex(Diagram):
         self.kp = np.broadcast_to(np.asarray(kp, float), (n,)).copy()
         self.kv = np.broadcast_to(np.asarray(kv, float), (n,)).copy()
         self.l_desired = np.broadcast_to(np.asarray(l_desired, float), (n,)).copy()
-        positive = np.zeros(n), np.full(n, np.inf)
-        b = DiagramBuilder()
-        stretch = b.AddNamedSystem("stretch", Adder(2, n))
-        set_point = b.AddNamedSystem("set_point", ConstantVectorSource(-self.l_desired))
-        b.Connect(set_point.get_output_port(), stretch.get_input_port(1))
-        length_terms = [b.AddNamedSystem(name, system) for name, system in
-                        (("stretch_positive", Saturation(*positive)), ("kp", Gain(self.kp)))]
-        velocity_terms = [b.AddNamedSystem(name, system) for name, system in
-                          (("lengthening", Saturation(*positive)), ("kv", Gain(self.kv)))]
-        b.Connect(stretch.get_output_port(), length_terms[0].get_input_port())
-        total = b.AddNamedSystem("feedback", Adder(2, n))
-        for k, (first, second) in enumerate((length_terms, velocity_terms)):
-            b.Connect(first.get_output_port(), second.get_input_port())
-            b.Connect(second.get_output_port(), total.get_input_port(k))
-        b.ExportInput(stretch.get_input_port(0), "normalized_fiber_length")
-        b.ExportInput(velocity_terms[0].get_input_port(), "normalized_fiber_velocity")
-        b.ExportOutput(total.get_output_port(), "feedback")
-        b.BuildInto(self)
+        self._ln = self.DeclareVectorInputPort("normalized_fiber_length", n)
+        self._vn = self.DeclareVectorInputPort("normalized_fiber_velocity", n)
+        self.DeclareVectorOutputPort("feedback", n, self._calc)
 
     def feedback(self, norm_length, norm_velocity) -> np.ndarray:
         return self.kp * np.maximum(norm_length - self.l_desired, 0.0) + self.kv * np.maximum(norm_velocity, 0.0)
+
+    def _calc(self, context, output):
+        output.SetFromVector(self.feedback(self._ln.Eval(context), self._vn.Eval(context)))
 
 
 class ExcitationMixer(Diagram):
