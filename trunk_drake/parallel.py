@@ -12,7 +12,9 @@ workers at once instead of letting them finish their jobs.
 
 from __future__ import annotations
 
+import hashlib
 import multiprocessing
+import pickle
 import signal
 import threading
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -35,13 +37,12 @@ class ModelRecipe:
     dofs: str
     pelvis_mass: float | None
     pelvis_free: bool
-    key: str  # the model's fingerprint: workers cache their models by it
+    key: str  # hash of the above: workers cache their models by it
 
     @classmethod
     def of(cls, model) -> "ModelRecipe":
-        from trunk_drake.metadata import model_fingerprint
-
-        return cls(model.spec, model.dofs, model.pelvis_mass, model.pelvis_free, model_fingerprint(model))
+        parts = (model.spec, model.dofs, model.pelvis_mass, model.pelvis_free)
+        return cls(*parts, hashlib.sha256(pickle.dumps(parts)).hexdigest()[:16])
 
     def build(self):
         from trunk_drake.model.trunk_model import load_model
@@ -59,6 +60,7 @@ def worker_model(recipe: ModelRecipe):
 
 def _init_local(recipe: ModelRecipe) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     worker_model(recipe)
 
 
@@ -114,13 +116,13 @@ class WorkerPool:
             self._executor = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("fork"),
                                                  initializer=_init_local, initargs=(self.recipe,))
         key = self.recipe.key
-        # forked workers inherit SIGINT ignored: a Ctrl-C while they start leaves no traceback in them
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if threading.current_thread() is threading.main_thread() else None
+        # SIGINT is blocked while the workers are forked: a Ctrl-C then waits for this process
+        # (not lost), and the workers, which inherit the mask, ignore it before unblocking it
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
         try:
             futures = {self._executor.submit(_run_local, fn, key, job): i for i, job in enumerate(jobs)}
         finally:
-            if previous is not None:
-                signal.signal(signal.SIGINT, previous)
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
         pending = set(futures)
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
