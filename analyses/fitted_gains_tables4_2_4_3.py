@@ -74,7 +74,7 @@ def _gain_figure(path, settling, car, truth, tables):
     return thesis.save_figure(fig, path)
 
 
-def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, trials=TRIALS, max_iterations=20):
+def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, trials=TRIALS, max_iterations=20, t_max=None):
     if model is None:
         from trunk_drake.model.trunk_model import load_model
 
@@ -90,7 +90,7 @@ def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, tria
     ref = models_dir() / "reference"
     experiment = load_experiment([ref / t for t in trials], ref / "conditions.toml")
     targets = targets_from_trials(experiment.trials, OUTPUT_NAMES, experiment.noise_rad, period=experiment.period,
-                                  steady_start=experiment.fade)
+                                  steady_start=experiment.fade, t_max=t_max)
     car = fit_reflex_gains(model, targets, options=TrunkOptions(**experiment.options), n_starts=1, workers=workers,
                            max_iterations=max_iterations, progress=False)
     car_files = write_fit(car, f"{out_dir}/car")
@@ -172,7 +172,8 @@ def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, tria
                  "files": {"car_arrays": arrays, **{f"car_{k}": v for k, v in car_files.items()},
                            **{f"settling_{k}": v for k, v in settling_files.items()}}},
         settings={"settling": f"{settling_duration:g} s, target 0 deg, co-activation 0.020, k = 100 Nm/rad, c = 7.5 Nms/rad",
-                  "car": f"{', '.join(trials)}; conditions from models/reference/conditions.toml",
+                  "car": f"{', '.join(trials)}" + (f" (first {t_max:g} s)" if t_max else "")
+                         + "; conditions from models/reference/conditions.toml",
                   "fit": f"bounded secant Levenberg-Marquardt, 1 start (thesis initial values), <= {max_iterations} iterations, "
                          f"{workers} worker processes"},
     )

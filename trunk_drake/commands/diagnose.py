@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import json
 
-from trunk_drake.commands import count
+from trunk_drake.commands import count, positive
+from trunk_drake.gap.catalogue import CATALOGUE
 
 
 def add_command(sub) -> None:
@@ -15,8 +16,9 @@ def add_command(sub) -> None:
     p.add_argument("--out", required=True, help="output folder (report.md, diagnosis.json, figures)")
     p.add_argument("--conditions", help="TOML with a [conditions] table (default: conditions.toml beside the data)")
     p.add_argument("--gains", help="TOML with [kp] and [kv] per group: the model's reflex gains (e.g. a fit's gains.toml)")
-    p.add_argument("--noise-deg", type=float, help="angle measurement noise (default: conditions, else estimated)")
-    p.add_argument("--candidates", nargs="*", help="candidate effects (default: the whole catalogue)")
+    p.add_argument("--noise-deg", type=positive, help="angle measurement noise (default: conditions, else estimated)")
+    p.add_argument("--candidates", nargs="*", choices=[e.name for e in CATALOGUE], metavar="EFFECT",
+                   help=f"candidate effects (default: the whole catalogue: {', '.join(e.name for e in CATALOGUE)})")
     p.add_argument("--threshold", type=float, default=10.0, help="held-out dBIC needed to claim an effect")
     p.add_argument("--refine", type=count, default=3, help="candidates refined with nonlinear simulations")
     p.add_argument("--workers", type=count, default=2)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from trunk_drake.commands import count
+from trunk_drake.commands import count, positive
 from trunk_drake.gap.benchmark import cases
 
 
@@ -12,7 +12,7 @@ def add_command(sub) -> None:
     b = sub.add_parser("gap-benchmark", help="diagnose data whose effect was withheld: confusion matrix and gap reduction")
     b.add_argument("--out", required=True, help="output folder (results.jsonl, summary.md/json, one report per case)")
     b.add_argument("--quick", action="store_true", help="one magnitude per effect and 2 no-effect cases (9 cases)")
-    b.add_argument("--noise-deg", type=float, default=None, help="angle noise (default 0.1 deg)")
+    b.add_argument("--noise-deg", type=positive, default=None, help="angle noise (default 0.1 deg)")
     b.add_argument("--case", nargs="+", metavar="NAME", choices=[c.name for c in cases()], default=None,
                    help=f"run only these cases: {', '.join(c.name for c in cases())}")
     b.add_argument("--workers", type=count, default=2, help="local processes of each case's diagnosis")
