@@ -41,8 +41,9 @@ def test_workers_rebuild_the_model_and_keep_the_order(sagittal):
         assert {pid for pid, _ in pool.map(_lengths, poses[:2])} == {os.getpid()}
 
 
-def test_a_job_error_reaches_the_caller(sagittal):
-    with WorkerPool(sagittal, workers=2) as pool:
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_job_error_reaches_the_caller(sagittal, workers):
+    with WorkerPool(sagittal, workers=workers) as pool:
         outcomes = sorted(pool.completed(_fails, [1, 2]), key=lambda o: o[0])
         assert [str(error) for _, _, error in outcomes] == ["job 1 failed", "job 2 failed"]
         with pytest.raises(ValueError, match="job 1 failed"):

@@ -105,7 +105,12 @@ class WorkerPool:
         jobs = list(jobs)
         if not self.parallel:
             for i, job in enumerate(jobs):
-                yield i, fn(self.model, job), None
+                try:
+                    result = fn(self.model, job)
+                except Exception as err:  # noqa: BLE001 - as from a worker
+                    yield i, None, err
+                else:
+                    yield i, result, None
         elif self.cluster:
             yield from self._dask(fn, jobs)
         else:
