@@ -1,7 +1,7 @@
 """The one worker pool: jobs on local processes or a Dask cluster, the model rebuilt once per worker.
 
-Drake objects cannot be pickled, so a worker receives the model's recipe (`ModelRecipe`: spec,
-configuration, pelvis options) and builds the model once; a job is a module-level function
+Drake objects cannot be pickled, so a worker receives the model's recipe (`ModelRecipe`: spec
+and `load_model` options) and builds the model once; a job is a module-level function
 ``fn(model, job)`` with a picklable job and result. With one worker (and no cluster) the jobs run
 in this process on the caller's model.
 
@@ -31,23 +31,21 @@ class WorkerLost(RuntimeError):
 
 @dataclass(frozen=True)
 class ModelRecipe:
-    """What a worker needs to rebuild a TrunkModel (see `load_model`)."""
+    """What a worker needs to rebuild a TrunkModel: its spec and `load_options`."""
 
     spec: object
-    dofs: str
-    pelvis_mass: float | None
-    pelvis_free: bool
-    key: str  # hash of the above: workers cache their models by it
+    options: dict
+    key: str  # hash of both: workers cache their models by it
 
     @classmethod
     def of(cls, model) -> "ModelRecipe":
-        parts = (model.spec, model.dofs, model.pelvis_mass, model.pelvis_free)
+        parts = (model.spec, model.load_options)
         return cls(*parts, hashlib.sha256(pickle.dumps(parts)).hexdigest()[:16])
 
     def build(self):
         from trunk_drake.model.trunk_model import load_model
 
-        return load_model(self.dofs, spec=self.spec, pelvis_mass=self.pelvis_mass, pelvis_free=self.pelvis_free)
+        return load_model(spec=self.spec, **self.options)
 
 
 def worker_model(recipe: ModelRecipe):

@@ -52,11 +52,14 @@ class TrunkModel:
     def n_muscles(self) -> int:
         return len(self.spec.muscles)
 
+    @property
+    def load_options(self) -> dict:
+        """The options of `load_model` that, with `spec`, rebuild this model (worker processes do)."""
+        return {"dofs": self.dofs, "pelvis_free": self.pelvis_free, "pelvis_mass": self.pelvis_mass}
+
     def variant(self, **changes) -> "TrunkModel":
         """The same model (same spec) rebuilt with other options of `load_model`."""
-        options = {"dofs": self.dofs, "pelvis_free": self.pelvis_free, "pelvis_mass": self.pelvis_mass}
-        options.update(changes)
-        return load_model(spec=self.spec, **options)
+        return load_model(spec=self.spec, **{**self.load_options, **changes})
 
     def muscle_array(self, attribute: str) -> np.ndarray:
         """A per-muscle parameter as an array, e.g. ``muscle_array("max_isometric_force")``."""
