@@ -2,7 +2,7 @@
 stiffness 100 Nm/rad) sweeps; settling under gravity, no reflexes, no co-activation.
 
 The thesis locked the other lumbar joints and plotted L5-S1. We emulate the lock with very
-stiff bushings at the other four levels (reproduce.locked_levels) and also run the model with
+stiff bushings at the other four levels (thesis.locked_levels) and also run the model with
 all five levels free, the configuration every later experiment uses.
 """
 
