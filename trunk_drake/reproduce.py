@@ -48,7 +48,7 @@ EXPERIMENTS = (
     Experiment("force_disturbance_fig4_10_4_11", "Force disturbance and pelvis versus platform motion (Figs. 4.10-4.11)",
                quick={"duration": 2.0}),
     Experiment("fitted_gains_tables4_2_4_3", "Fitted reflex gains (Tables 4.2-4.3)",
-               quick={"settling_duration": 1.0, "trials": ("trial_1hz_a.csv",), "max_iterations": 1, "t_max": 4.0}),
+               quick={"settling_duration": 0.5, "trials": ("trial_1hz_a.csv",), "max_iterations": 1, "t_max": 2.0}),
     Experiment("intrinsic_vs_reflex_fig4_13", "Intrinsic properties alone versus with reflexes (Fig. 4.13)", quick={"duration": 2.0}),
     Experiment("validation_fig4_14_4_15", "Validation: time-domain fit and VAF, FRF (Figs. 4.14-4.15)",
                requires=("fitted_gains_tables4_2_4_3",)),
