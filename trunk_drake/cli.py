@@ -14,7 +14,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from trunk_drake.commands import command_modules
+from trunk_drake.commands import command_modules, plain_warning
 
 INTERRUPTED = 130  # exit status of a command stopped by SIGINT (128 + 2)
 
@@ -64,11 +64,6 @@ def interrupted_message(out: Path | None, before: dict, resumable: bool) -> str:
     if _files(out) == before or not _files(out):
         return "interrupted"
     return f"interrupted; partial results in {out}" + ("; rerun the same command to resume" if resumable else "")
-
-
-def plain_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    """warnings.showwarning for users: one line, no Python source."""
-    print(f"warning: {message}", file=file or sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -10,6 +10,7 @@ import argparse
 import importlib
 import json
 import pkgutil
+import sys
 
 from trunk_drake.metadata import json_default
 
@@ -49,6 +50,11 @@ def count(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
     return value
+
+
+def plain_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """warnings.showwarning for users: one line, no Python source."""
+    print(f"warning: {message}", file=file or sys.stderr)
 
 
 def print_json(data) -> None:

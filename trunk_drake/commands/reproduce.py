@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import sys
+import warnings
 from pathlib import Path
 
-from trunk_drake.commands import count
+from trunk_drake.commands import count, plain_warning
 from trunk_drake.reproduce import EXPERIMENTS, REPORT_MD
 
 
@@ -48,5 +49,7 @@ def script_main(script: str) -> int:
     parser = argparse.ArgumentParser(description=f"{experiment(name).title}: run it and write report.md/.json into --out")
     add_run_arguments(parser)
     args = parser.parse_args()
-    report = run_experiments(args.out, [name], force=args.force, workers=args.workers)
+    with warnings.catch_warnings():
+        warnings.showwarning = plain_warning
+        report = run_experiments(args.out, [name], force=args.force, workers=args.workers)
     return 0 if report["experiments"][name]["status"] == "ok" else 1
