@@ -15,6 +15,8 @@ _API = {
     "coactivation": "trunk_drake.optim.static",
     "isometric_strength": "trunk_drake.optim.strength",
     "fit_reflex_gains": "trunk_drake.optim.fit",
+    "stability": "trunk_drake.optim.stability",
+    "StabilityResult": "trunk_drake.optim.stability",
 }
 
 __all__ = list(_API)
