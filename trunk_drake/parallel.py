@@ -86,6 +86,10 @@ class WorkerPool:
 
     def __exit__(self, kind, error, tb) -> None:
         self.close(terminate=kind is not None)
+        if kind is not None and issubclass(kind, KeyboardInterrupt):  # Ctrl-C: no child process may outlive us
+            for process in multiprocessing.active_children():
+                process.terminate()
+                process.join(timeout=2.0)
 
     def map(self, fn, jobs) -> list:
         """Results of all jobs, in order; a worker's exception is raised here."""
