@@ -36,7 +36,16 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     for module in command_modules():
         module.add_command(sub)
+    for command in _leaf_parsers(sub):
+        command.add_argument("--model", default=None, metavar="PATH",
+                             help="an OpenSim .osim model to use instead of the embedded MyoTorso (every model this run loads)")
     return parser
+
+
+def _leaf_parsers(sub):
+    for parser in sub.choices.values():
+        group = parser.get_default("group_commands")
+        yield from (_leaf_parsers(group) if group is not None else (parser,))
 
 
 def prepare_out(out) -> Path:
@@ -82,6 +91,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(argv, run: dict) -> int:
+    from trunk_drake.model.trunk_model import model_source
     from trunk_drake.simulation import SimulationError
 
     try:
@@ -93,7 +103,8 @@ def _run(argv, run: dict) -> int:
         if getattr(args, "out", None) is not None:
             run["out"] = prepare_out(args.out)
             run["before"] = _files(run["out"])
-        return int(args.func(args) or 0)
+        with model_source(args.model):
+            return int(args.func(args) or 0)
     except (ValueError, FileNotFoundError, KeyError) as err:
         print(f"trunk-drake: error: {err}", file=sys.stderr)
         return 2

@@ -70,7 +70,7 @@ def format_model_info(info: dict) -> str:
         f"{_cm(ub['com_superior_of_L4_L5_joint_m'], 'superior', 'inferior')} to the L4/L5 joint centre; "
         f"{_cm(ub['com_anterior_of_L4_body_centre_m'], 'anterior', 'posterior')} to the L4 body centre",
         f"  thesis (Schmid et al. model): {_cm(ub['thesis_com_anterior_of_L4_m'], 'anterior', 'posterior')} to L4 -> "
-        + ("agrees (within 1 cm)" if ub["agrees_with_thesis"] else "does NOT agree: MyoTorso has no arms and a posterior lumped upper body"),
+        + ("agrees (within 1 cm)" if ub["agrees_with_thesis"] else f"does NOT agree: {info['model']} has no arms and a posterior lumped upper body"),
     ]
     return "\n".join(lines)
 
