@@ -75,8 +75,16 @@ def interrupted_message(out: Path | None, before: dict, resumable: bool) -> str:
     return f"interrupted; partial results in {out}" + ("; rerun the same command to resume" if resumable else "")
 
 
+def _quiet_interrupts(unraisable, report=sys.unraisablehook) -> None:
+    """sys.unraisablehook: a Ctrl-C caught inside native code (numba, a Drake callback) is no
+    traceback for the user; main() reports the interruption."""
+    if not issubclass(unraisable.exc_type, KeyboardInterrupt):
+        report(unraisable)
+
+
 def main(argv: list[str] | None = None) -> int:
     run = {"out": None, "before": {}, "resumable": False}
+    hook, sys.unraisablehook = sys.unraisablehook, _quiet_interrupts
     with warnings.catch_warnings():
         warnings.showwarning = plain_warning
         try:
@@ -88,6 +96,8 @@ def main(argv: list[str] | None = None) -> int:
                 sys.stderr.flush()
                 os._exit(INTERRUPTED)
             return INTERRUPTED
+        finally:
+            sys.unraisablehook = hook
 
 
 def _run(argv, run: dict) -> int:
