@@ -10,7 +10,7 @@ from pydrake.multibody.tree import BodyIndex, JointIndex
 
 from trunk_drake.model.architecture import with_hill_parameters
 from trunk_drake.model.myotorso import read_myotorso
-from trunk_drake.model.paths import MusclePaths, PathState
+from trunk_drake.model.paths import MusclePaths, PathLayout, PathPoints, PathState
 from trunk_drake.model.plant import DOFS, Coordinate, build_plant
 from trunk_drake.model.spec import ModelSpec
 
@@ -83,14 +83,18 @@ class TrunkModel:
                 )
         return q
 
+    def body_poses(self, context, bodies=None) -> tuple[np.ndarray, np.ndarray]:
+        """World rotations (n_bodies, 3, 3) and positions (n_bodies, 3) of the plant's bodies,
+        filled for `bodies` (indices; default: those carrying sites, wraps or joint frames)."""
+        all_poses = self.plant.get_body_poses_output_port().Eval(context)
+        poses = np.zeros((len(all_poses), 3, 4))
+        for i in self._pose_bodies if bodies is None else bodies:
+            poses[i] = all_poses[i].GetAsMatrix34()
+        return poses[:, :, :3], poses[:, :, 3]
+
     def path_state_from_context(self, context, v=None) -> PathState:
         """Muscle path kinematics for a plant context (body poses read from the plant)."""
-        plant = self.plant
-        all_poses = plant.get_body_poses_output_port().Eval(context)
-        poses = np.zeros((len(all_poses), 3, 4))
-        for i in self._pose_bodies:  # only bodies that carry sites, wraps or joint frames
-            poses[i] = all_poses[i].GetAsMatrix34()
-        R, p = poses[:, :, :3], poses[:, :, 3]
+        R, p = self.body_poses(context)
         Rj = R[self._joint_body]
         axes = (Rj @ self._joint_axis[:, :, None])[:, :, 0]
         origins = (Rj @ self._joint_anchor[:, :, None])[:, :, 0] + p[self._joint_body]
@@ -103,6 +107,21 @@ class TrunkModel:
         if v is not None:
             v = self.check_q(v, "v", check_range=False)
         return self.path_state_from_context(self._context, v)
+
+    def path_points(self, q) -> PathPoints:
+        """World points of all muscle paths (sites, wrap tangent points) at q, for drawing;
+        `path_layout` tells which belong to which muscle."""
+        self.plant.SetPositions(self._context, self.check_q(q))
+        return self._paths.points(*self.body_poses(self._context))
+
+    @property
+    def path_layout(self) -> PathLayout:
+        return self._paths.layout
+
+    @property
+    def body_names(self) -> list[str]:
+        """Names of the plant's bodies in body-index order (the order of `body_poses`)."""
+        return [self.plant.get_body(BodyIndex(i)).name() for i in range(self.plant.num_bodies())]
 
     def muscle_lengths(self, q) -> np.ndarray:
         """Musculotendon lengths (n_muscles,), m."""
@@ -142,15 +161,11 @@ def _build(spec: ModelSpec, dofs: str, pelvis_mass: float | None, pelvis_free: b
         joint = plant.GetJointByName(c.name)
         for b in plant.GetBodiesKinematicallyAffectedBy([JointIndex(int(joint.index()))]):
             moves[int(b), k] = 1.0
-    names = [plant.get_body(_body_index(i)).name() for i in range(n_bodies)]
+    names = [plant.get_body(BodyIndex(i)).name() for i in range(n_bodies)]
     paths = MusclePaths(spec, names, [c.kind for c in coords], moves)
     model = TrunkModel(spec=spec, dofs=dofs, pelvis_free=pelvis_free, pelvis_mass=pelvis_mass, plant=plant, coordinate_info=coords, _paths=paths, _context=plant.CreateDefaultContext())
     model._init_joints()
     return model
-
-
-def _body_index(i: int) -> BodyIndex:
-    return BodyIndex(i)
 
 
 def load_model(dofs: str = "sagittal", spec: ModelSpec | None = None, pelvis_mass: float | None = None,
