@@ -5,6 +5,7 @@ from trunk_drake.optim.fit import fit_reflex_gains
 from trunk_drake.optim.static import coactivation, static_optimization
 from trunk_drake.optim.strength import isometric_strength
 from trunk_drake.simulation import SimulationResult, simulate
+from trunk_drake.visual import animate
 
 __all__ = [
     "TrunkModel",
@@ -15,5 +16,6 @@ __all__ = [
     "coactivation",
     "isometric_strength",
     "fit_reflex_gains",
+    "animate",
 ]
 

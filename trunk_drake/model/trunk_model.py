@@ -110,8 +110,8 @@ class TrunkModel:
 
     def path_points(self, q) -> PathPoints:
         """World points of all muscle paths (sites, wrap tangent points) at q, for drawing;
-        `path_layout` tells which belong to which muscle."""
-        self.plant.SetPositions(self._context, self.check_q(q))
+        `path_layout` tells which belong to which muscle. No joint-range warning: drawing only."""
+        self.plant.SetPositions(self._context, self.check_q(q, check_range=False))
         return self._paths.points(*self.body_poses(self._context))
 
     @property

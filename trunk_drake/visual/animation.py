@@ -1,0 +1,156 @@
+"""Pages of the passenger: `animate` (a simulation as a standalone HTML recording), `view_html`
+(the model at rest) and `serve` (a live Meshcat with a slider per coordinate)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from trunk_drake.visual.geometry import Drawing
+from trunk_drake.visual.page import (
+    activation_legend,
+    activation_scale,
+    group_legend,
+    player_data,
+    standalone_html,
+    write_page,
+)
+from trunk_drake.visual.scene import GROUP_RGB, OTHER_GROUP_RGB, PassengerScene, Platform
+
+CAMERA_DISTANCE = 1.1  # m from the mid-trunk, looking from front-left
+
+
+def animate(result, path, model=None, title: str | None = None) -> Path:
+    """Write `result` (a SimulationResult) as a self-contained HTML page that plays it in real
+    time: bones, muscle lines coloured by activation, platform; play/pause and a time slider
+    under "Open Controls" > Animations. One animation frame per result sample."""
+    model = model or _default_model()
+    fps = _frame_rate(result.time)
+    q = model_positions(model, result.coordinates, result.q)
+    drawing = Drawing(model)
+    motion = drawing.motion(q)
+    meshcat = _meshcat()
+    scene = PassengerScene(meshcat, drawing)
+    scene.pose(q[0])  # the player colours the muscles by activation
+    platform = Platform(meshcat, drawing)
+    _look_at_trunk(meshcat, drawing)
+
+    from pydrake.geometry import MeshcatAnimation
+
+    animation = MeshcatAnimation(frames_per_second=fps)
+    animation.set_autoplay(True)
+    scene.record(animation, motion)
+    platform.record(animation, result.platform[:, 0])
+    meshcat.SetAnimation(animation)
+    title = title or f"trunk-drake simulation, {result.time[-1] - result.time[0]:g} s"
+    player = player_data(fps, scene.segment_paths, scene.muscle_paths, drawing.vertices(), motion.wrap_points, result.activation)
+    legend = activation_legend(activation_scale(result.activation))
+    return write_page(standalone_html(meshcat, title, legend, player), path)
+
+
+def view_html(path, model=None, q=None, title: str | None = None) -> Path:
+    """The model at rest (or at q) as a standalone HTML page, muscles coloured by group."""
+    model = model or _default_model()
+    drawing = Drawing(model)
+    meshcat = _meshcat()
+    scene = PassengerScene(meshcat, drawing)
+    if q is not None:
+        scene.pose(q)
+    Platform(meshcat, drawing)
+    _look_at_trunk(meshcat, drawing)
+    title = title or f"trunk-drake: MyoTorso, {model.dofs} configuration, {model.n_muscles} muscles"
+    return write_page(standalone_html(meshcat, title, group_legend(_groups(model))), path)
+
+
+class LiveView:
+    """A live Meshcat of the model with one slider per coordinate; `update()` re-poses it."""
+
+    def __init__(self, model=None, port: int | None = None):
+        self.model = model or _default_model()
+        self.meshcat = _meshcat(port)
+        self.drawing = Drawing(self.model)
+        self.scene = PassengerScene(self.meshcat, self.drawing)
+        Platform(self.meshcat, self.drawing)
+        _look_at_trunk(self.meshcat, self.drawing)
+        for c in self.model.coordinate_info:
+            low, high = (-0.2, 0.2) if c.source_joint is None else c.range
+            self.meshcat.AddSlider(c.name, low, high, (high - low) / 200, 0.0)
+        self.q = np.zeros(len(self.model.coordinates))
+
+    @property
+    def url(self) -> str:
+        return self.meshcat.web_url()
+
+    def update(self) -> bool:
+        """Pose the model at the sliders' values if they changed; True if it did."""
+        q = np.array([self.meshcat.GetSliderValue(c) for c in self.model.coordinates])
+        if np.array_equal(q, self.q):
+            return False
+        self.q = q
+        self.scene.pose(q)
+        return True
+
+
+def serve(model=None, port: int | None = None, duration: float | None = None, poll_s: float = 0.05) -> None:
+    """Run a live Meshcat of the model until Ctrl-C (or for `duration` seconds)."""
+    live = LiveView(model, port)
+    print(f"Meshcat: open {live.url} (sliders under Open Controls); Ctrl-C to stop", flush=True)
+    end = None if duration is None else time.monotonic() + duration
+    try:
+        while end is None or time.monotonic() < end:
+            live.update()
+            time.sleep(poll_s)
+    except KeyboardInterrupt:
+        pass
+
+
+def model_positions(model, coordinates, q) -> np.ndarray:
+    """Rows of q (named `coordinates`) as the model's positions; missing coordinates stay 0."""
+    unknown = [c for c in coordinates if c not in model.coordinates]
+    if unknown:
+        raise ValueError(f"the result has coordinates {unknown} that the {model.dofs!r} model lacks "
+                         f"(its coordinates: {model.coordinates}); pass the model it was simulated with")
+    out = np.zeros((len(q), len(model.coordinates)))
+    for k, c in enumerate(coordinates):
+        out[:, model.coordinates.index(c)] = q[:, k]
+    return out
+
+
+def _frame_rate(t) -> float:
+    dt = np.diff(np.asarray(t, dtype=float))
+    if len(dt) == 0 or dt.min() <= 0 or np.ptp(dt) > 1e-6 * dt.mean():
+        raise ValueError("an animation needs a result sampled on a uniform time grid of at least two samples "
+                         f"(got {len(t)} samples, steps {dt.min() if len(dt) else 0:.3g}-{dt.max() if len(dt) else 0:.3g} s)")
+    return float(1.0 / dt.mean())
+
+
+def _default_model():
+    from trunk_drake.model.trunk_model import load_model
+
+    return load_model("sagittal")
+
+
+def _meshcat(port: int | None = None):
+    from pydrake.geometry import Meshcat, MeshcatParams
+
+    meshcat = Meshcat(MeshcatParams(host="localhost", port=port))
+    meshcat.SetProperty("/Axes", "visible", False)
+    meshcat.SetProperty("/Grid", "visible", False)
+    return meshcat
+
+
+def _look_at_trunk(meshcat, drawing: Drawing) -> None:
+    """Camera from the passenger's front-left, aimed at the middle of the trunk."""
+    names = drawing.model.body_names
+    R, p = drawing.poses(np.zeros(drawing.model.plant.num_positions()))
+    sacrum, head = names.index("sacrum"), names.index("head")
+    target = (p[sacrum] + p[head]) / 2
+    anterior, left = R[sacrum][:, 0], -R[sacrum][:, 2]  # sacrum frame: x anterior, z right
+    direction = 0.55 * anterior + 0.8 * left + np.array([0.0, 0.0, 0.15])
+    meshcat.SetCameraPose(target + CAMERA_DISTANCE * direction / np.linalg.norm(direction), target)
+
+
+def _groups(model) -> dict[str, tuple]:
+    return {g: GROUP_RGB.get(g, OTHER_GROUP_RGB) for g in model.groups}
