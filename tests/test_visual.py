@@ -221,3 +221,65 @@ def _union(a, b, margin=0):
 
 def _obj_vertices(path) -> np.ndarray:
     return np.array([ln.split()[1:4] for ln in path.read_text().splitlines() if ln.startswith("v ")], dtype=float)
+
+
+# ------------------------------------------------------------------------------ commands and live view
+
+@pytest.mark.parametrize("dofs", ["sagittal", "spine3d"])
+def test_view_command_writes_the_model_at_rest(dofs, tmp_path, capsys):
+    from trunk_drake.cli import main
+
+    path = tmp_path / "model.html"
+    assert main(["view", "--dofs", dofs, "--out", str(path)]) == 0
+    assert str(path) in capsys.readouterr().out
+    html = path.read_text()
+    assert external_urls(html) == []
+    messages = scene_messages(html)
+    assert not any(m["type"] == "set_animation" for m in messages)
+    lines = [m["path"] for m in messages if m["type"] == "set_object" and "/muscles/" in m["path"]]
+    assert sorted(p.rsplit("/", 1)[1] for p in lines) == sorted(td.load_model(dofs).muscles)
+    meshes = {m["path"].rsplit("/", 1)[1] for m in messages if m["type"] == "set_object" and "/bones/" in m["path"]}
+    assert meshes == set(bone_meshes())
+
+
+def test_simulate_html_flag(tmp_path):
+    from trunk_drake.cli import main
+
+    assert main(["simulate", "--duration", "0.3", "--out", str(tmp_path), "--html"]) == 0
+    data = player((tmp_path / "animation.html").read_text())
+    assert data["frames"] == 31 and data["fps"] == pytest.approx(100)
+
+
+def test_live_view_follows_its_sliders(model):
+    from trunk_drake.visual import LiveView
+
+    live = LiveView(model)
+    assert live.url.startswith("http://localhost:")
+    assert not live.update()
+    live.meshcat.SetSliderValue("L1_L2_FE", 0.3)
+    assert live.update() and live.q[model.coordinates.index("L1_L2_FE")] == pytest.approx(0.3, abs=0.01)  # slider step
+    shown = [m for m in scene_messages(live.meshcat.StaticHtml()) if m["type"] == "set_transform" and m["path"] == "/passenger/bones/lumbar1"]
+    R, p = Drawing(model).poses(live.q)
+    lumbar1 = model.body_names.index("lumbar1")
+    np.testing.assert_allclose(np.array(shown[-1]["matrix"]).reshape(4, 4).T[:3], np.column_stack([R[lumbar1], p[lumbar1]]), atol=1e-12)
+
+
+def test_animate_rejects_what_it_cannot_show(model, result, tmp_path):
+    import dataclasses
+
+    uneven = dataclasses.replace(result, time=result.time ** 1.1)
+    with pytest.raises(ValueError, match="uniform time grid"):
+        td.animate(uneven, tmp_path / "a.html", model)
+    alien = dataclasses.replace(result, coordinates=["hip_flexion", *result.coordinates[1:]])
+    with pytest.raises(ValueError, match=r"coordinates \['hip_flexion'\]"):
+        td.animate(alien, tmp_path / "a.html", model)
+
+
+def test_bone_meshes_are_converted_once_into_the_user_cache(tmp_path, monkeypatch):
+    from trunk_drake.visual import meshes
+
+    monkeypatch.setenv("TRUNK_DRAKE_CACHE", str(tmp_path))
+    first = meshes.bone_meshes()
+    assert all(p.is_file() and p.parent.parent == tmp_path for p in first.values())
+    monkeypatch.setattr(meshes, "_convert", lambda folder: pytest.fail("converted again"))
+    assert meshes.bone_meshes() == first

@@ -26,6 +26,8 @@ def add_command(sub) -> None:
                    help="exact prescribed pelvis motion, or the thesis' 10,000 kg force-driven pelvis")
     p.add_argument("--accuracy", type=float, default=DEFAULT_ACCURACY, help="integrator target accuracy")
     p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--html", action="store_true",
+                   help="also write animation.html: the run in 3-D (bones, muscles by activation), opens offline")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.add_argument("--progress", action="store_true", help="show a progress bar")
     p.set_defaults(func=run)
@@ -45,6 +47,12 @@ def run(args) -> int:
         pelvis=args.pelvis, accuracy=args.accuracy, progress=args.progress, **gains,
     )
     files = result.write(args.out)
+    if args.html:
+        from pathlib import Path
+
+        from trunk_drake.visual import animate
+
+        files["animation"] = animate(result, Path(args.out) / "animation.html", model)
     summary = {**result.summary(), "files": {k: str(v) for k, v in files.items()}}
     if args.json:
         print_json(summary)

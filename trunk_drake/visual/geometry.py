@@ -71,19 +71,24 @@ class Drawing:
 
     def frame(self, q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Segment rotations (n_segments, 3, 3), positions (n_segments, 3) and wrap points at q."""
-        R, p = self.poses(q)
-        root = [s.body for s in self.segments]
-        points = self.model.path_points(q)
-        lay = self._layout
-        centre = np.einsum("wij,wj->wi", R[lay.wrap_body], lay.wrap_pos) + p[lay.wrap_body]
-        axis = np.einsum("wij,wj->wi", R[lay.wrap_body], lay.wrap_rot[:, :, 2])
-        arcs = wrap_arcs(points.tangents, points.wrap_lengths, centre, axis, lay.wrap_radius, lay.wrap_cylinder)
-        return R[root], p[root], arcs
+        motion = self.motion(np.asarray(q, dtype=float)[None])
+        return motion.segment_R[0], motion.segment_p[0], motion.wrap_points[0]
 
     def motion(self, q_history) -> Motion:
         """Segment poses and wrap points for every row of q_history (n_frames, n_q)."""
-        frames = [self.frame(q) for q in np.asarray(q_history, dtype=float)]
-        return Motion(*(np.array(x) for x in zip(*frames)))
+        lay, root = self._layout, [s.body for s in self.segments]
+        R_seg, p_seg, tangents, lengths, centre, axis = [], [], [], [], [], []
+        for q in np.asarray(q_history, dtype=float):
+            R, p = self.poses(q)
+            points = self.model.path_points(q)
+            R_seg.append(R[root])
+            p_seg.append(p[root])
+            tangents.append(points.tangents)
+            lengths.append(points.wrap_lengths)
+            centre.append(np.einsum("wij,wj->wi", R[lay.wrap_body], lay.wrap_pos) + p[lay.wrap_body])
+            axis.append(np.einsum("wij,wj->wi", R[lay.wrap_body], lay.wrap_rot[:, :, 2]))
+        arcs = wrap_arcs(np.array(tangents), np.array(lengths), np.array(centre), np.array(axis), lay.wrap_radius, lay.wrap_cylinder)
+        return Motion(np.array(R_seg), np.array(p_seg), arcs)
 
     def polylines(self, q) -> list[np.ndarray]:
         """World points of every muscle's polyline at q (for a still picture or a live view)."""
