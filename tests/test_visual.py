@@ -3,7 +3,6 @@
 import base64
 import json
 import re
-import shutil
 import warnings
 
 import mujoco
@@ -16,9 +15,6 @@ from trunk_drake.visual.meshes import bone_meshes
 from trunk_drake.visual.page import external_urls
 
 DURATION = 1.0
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 
 
 @pytest.fixture(scope="module")
@@ -153,37 +149,27 @@ def test_animation_page_structure(model, result, page):
 def test_animation_plays_in_headless_chromium(page, tmp_path):
     """Chromium opens the page offline: the scene loads, no JavaScript error, and between t = 0
     and t = 1 s the picture changes where the upper trunk moved and nowhere outside the passenger."""
-    if shutil.which(CHROMIUM) is None:
-        pytest.skip(f"no Chromium at {CHROMIUM}: .ci/run installs Debian's chromium with apt-get (needs root)")
-    sync_api = pytest.importorskip("playwright.sync_api", reason="Python playwright (test extra) drives Chromium")
+    from trunk_drake.visual import browser
+
+    if browser.chromium_path() is None:
+        pytest.skip("no chromium on PATH: .ci/run installs Debian's chromium with apt-get (needs root)")
+    pytest.importorskip("playwright.sync_api", reason="Python playwright (test extra) drives Chromium")
     from PIL import Image
 
-    errors, requests = [], []
-    with sync_api.sync_playwright() as p:
-        browser = p.chromium.launch_persistent_context(str(tmp_path / "profile"), executable_path=CHROMIUM, headless=True,
-                                                       args=CHROMIUM_ARGS, viewport={"width": 900, "height": 700})
-        tab = browser.new_page()
-        tab.on("pageerror", lambda e: errors.append(str(e)))
-        tab.on("console", lambda m: m.type == "error" and errors.append(m.text))
-        tab.on("request", lambda r: requests.append(r.url))
-        tab.goto(page.as_uri())
-        tab.wait_for_function("window.trunkDrakeReady === true", timeout=120_000)
+    def picture(tab):
+        return np.asarray(Image.open(tab.screenshot(tmp_path / "shot.png")).convert("RGB"), dtype=float)
+
+    with browser.open_page(page) as tab:
         boxes, shots = [], []
-
-        def shot():
-            tab.wait_for_timeout(700)
-            tab.screenshot(path=str(tmp_path / "shot.png"))
-            return np.asarray(Image.open(tmp_path / "shot.png").convert("RGB"), dtype=float)
-
-        for t in (0.0, DURATION):  # what the time slider does
-            tab.evaluate(f"viewer.animator.pause(); viewer.animator.time = {t}; viewer.animator.seek({t})")
-            shots.append(shot())
-            boxes.append(tab.evaluate(SCREEN_BOXES))
-        tab.evaluate("['passenger', 'platform'].forEach((p) => viewer.scene_tree.find([p]).set_property('visible', false)); viewer.set_dirty()")
-        background = shot()
-        browser.close()
-    assert errors == [], errors
-    assert all(u.startswith(("file:", "data:")) for u in requests), [u for u in requests if not u.startswith(("file:", "data:"))]
+        for t in (0.0, DURATION):
+            tab.seek(t)
+            shots.append(picture(tab))
+            boxes.append(tab.page.evaluate(SCREEN_BOXES))
+        tab.page.evaluate("['passenger', 'platform'].forEach((p) => viewer.scene_tree.find([p]).set_property('visible', false));"
+                          "viewer.set_dirty()")
+        background = picture(tab)
+    assert tab.errors == [], tab.errors
+    assert all(u.startswith(("file:", "data:")) for u in tab.requests), [u for u in tab.requests if not u.startswith(("file:", "data:"))]
     changed = np.abs(shots[0] - shots[1]).sum(axis=2) > 40
     upper = _union(boxes[0]["upper"], boxes[1]["upper"])
     figure = _union(boxes[0]["figure"], boxes[1]["figure"], margin=6)

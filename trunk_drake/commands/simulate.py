@@ -52,7 +52,8 @@ def run(args) -> int:
 
         from trunk_drake.visual import animate
 
-        files["animation"] = animate(result, Path(args.out) / "animation.html", model)
+        title = f"trunk-drake simulate --duration {args.duration:g} --bandwidth {args.bandwidth:g}"
+        files["animation"] = animate(result, Path(args.out) / "animation.html", model, title=title)
     summary = {**result.summary(), "files": {k: str(v) for k, v in files.items()}}
     if args.json:
         print_json(summary)
