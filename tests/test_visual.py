@@ -269,3 +269,34 @@ def test_bone_meshes_are_converted_once_into_the_user_cache(tmp_path, monkeypatc
     assert all(p.is_file() and p.parent.parent == tmp_path for p in first.values())
     monkeypatch.setattr(meshes, "_convert", lambda folder: pytest.fail("converted again"))
     assert meshes.bone_meshes() == first
+
+
+def test_measured_motion_moves_a_second_trunk(model, result, tmp_path):
+    """Data and model side by side: the data's trunk follows the trial's level angles (or, with the
+    total rotation only, that rotation spread evenly over the levels), frame by frame."""
+    from trunk_drake.io.trials import LUMBAR_LEVELS, Trial
+    from trunk_drake.visual import measured_motion
+
+    data = td.simulate(model, duration=DURATION, stiffness=400.0)  # stiffer: moves less than `result`
+    levels = {c: data.coordinate(c)[::2] for c in LUMBAR_LEVELS}  # 50 Hz data
+    trials = {"levels": Trial(time=data.time[::2], fs=50.0, platform_displacement=data.platform[::2, 0], levels=levels),
+              "total": Trial(time=data.time[::2], fs=50.0, platform_displacement=data.platform[::2, 0],
+                             lumbar_rotation=data.lumbar_rotation[::2])}
+    lumbar1 = model.body_names.index("lumbar1")
+    for kind, trial in trials.items():
+        html = td.animate(result, tmp_path / f"{kind}.html", model, measured=measured_motion(trial, "trial 1")).read_text()
+        messages = scene_messages(html)
+        ghost = [m for m in messages if m["type"] == "set_object" and m["path"].startswith("/data/bones/")]
+        assert {m["path"].rsplit("/", 1)[1] for m in ghost} == set(bone_meshes())
+        assert all(m["object"]["materials"][0]["transparent"] for m in ghost)
+        assert not any(m["path"].startswith("/data/muscles") for m in messages if m["type"] == "set_object")
+        (animation,) = [m for m in messages if m["type"] == "set_animation"]
+        clip = next(a["clip"] for a in animation["animations"] if a["path"] == "/data/bones/lumbar1")
+        position = np.array([k["value"] for k in clip["tracks"][0]["keys"]])
+        assert len(position) == len(result.time)
+        q_end = np.r_[data.platform[-1, 0], [data.coordinate(c)[-1] for c in LUMBAR_LEVELS]]
+        if kind == "total":
+            q_end[1:] = data.lumbar_rotation[-1] / 5
+        _, p = Drawing(model).poses(q_end)
+        np.testing.assert_allclose(position[-1], p[lumbar1], atol=1e-12)
+        assert ("measured level angles" if kind == "levels" else "spread evenly") in html

@@ -9,30 +9,41 @@ from pathlib import Path
 import numpy as np
 
 from trunk_drake.visual.geometry import Drawing
+from trunk_drake.visual.measured import MeasuredMotion
 from trunk_drake.visual.page import (
     activation_legend,
     activation_scale,
+    ghost_legend,
     group_legend,
     player_data,
     standalone_html,
     write_page,
 )
-from trunk_drake.visual.scene import GROUP_RGB, OTHER_GROUP_RGB, PassengerScene, Platform
+from trunk_drake.visual.scene import (
+    BONE_RGBA,
+    DATA_GHOST_RGBA,
+    GROUP_RGB,
+    MODEL_GHOST_RGBA,
+    OTHER_GROUP_RGB,
+    PassengerScene,
+    Platform,
+)
 
 CAMERA_DISTANCE = 1.1  # m from the mid-trunk, looking from front-left
 
 
-def animate(result, path, model=None, title: str | None = None) -> Path:
+def animate(result, path, model=None, title: str | None = None, measured: MeasuredMotion | None = None) -> Path:
     """Write `result` (a SimulationResult) as a self-contained HTML page that plays it in real
     time: bones, muscle lines coloured by activation, platform; play/pause and a time slider
-    under "Open Controls" > Animations. One animation frame per result sample."""
+    under "Open Controls" > Animations. One animation frame per result sample. With `measured`
+    (see `measured_motion`) a second, blue trunk moves as the data do, over the model's."""
     model = model or _default_model()
     fps = _frame_rate(result.time)
     q = model_positions(model, result.coordinates, result.q)
     drawing = Drawing(model)
     motion = drawing.motion(q)
     meshcat = _meshcat()
-    scene = PassengerScene(meshcat, drawing)
+    scene = PassengerScene(meshcat, drawing, rgba=BONE_RGBA if measured is None else MODEL_GHOST_RGBA)
     scene.pose(q[0])  # the player colours the muscles by activation
     platform = Platform(meshcat, drawing)
     _look_at_trunk(meshcat, drawing)
@@ -43,10 +54,16 @@ def animate(result, path, model=None, title: str | None = None) -> Path:
     animation.set_autoplay(True)
     scene.record(animation, motion)
     platform.record(animation, result.platform[:, 0])
+    legend = activation_legend(activation_scale(result.activation))
+    if measured is not None:
+        data_q = model_positions(model, measured.coordinates, measured.at(result.time))
+        ghost = PassengerScene(meshcat, drawing, figure="data", muscles=False, rgba=DATA_GHOST_RGBA)
+        ghost.pose(data_q[0])
+        ghost.record(animation, drawing.motion(data_q))
+        legend = ghost_legend(measured.label, measured.note, MODEL_GHOST_RGBA, DATA_GHOST_RGBA) + legend
     meshcat.SetAnimation(animation)
     title = title or f"trunk-drake simulation, {result.time[-1] - result.time[0]:g} s"
     player = player_data(fps, scene.segment_paths, scene.muscle_paths, drawing.vertices(), motion.wrap_points, result.activation)
-    legend = activation_legend(activation_scale(result.activation))
     return write_page(standalone_html(meshcat, title, legend, player), path)
 
 

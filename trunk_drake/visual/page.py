@@ -50,14 +50,18 @@ def standalone_html(meshcat, title: str, legend: str, player: dict | None = None
 
 
 def activation_legend(scale: float) -> str:
-    stops = ",".join(f"rgb({','.join(str(round(255 * c)) for c in rgb)})" for rgb in ACTIVATION_RGB)
+    stops = ",".join(_css(rgb) for rgb in ACTIVATION_RGB)
     return (f'<div>muscle activation</div><div style="height:10px;width:200px;background:linear-gradient(to right,{stops})">'
             f'</div><div style="display:flex;justify-content:space-between;width:200px"><span>0</span><span>{scale:g}</span></div>')
 
 
+def ghost_legend(label: str, note: str, model_rgb, data_rgb) -> str:
+    return (f"<div>{_swatch(model_rgb)} model (with its muscles)</div>"
+            f"<div>{_swatch(data_rgb)} data: {_escape(label)} ({_escape(note)})</div>")
+
+
 def group_legend(colours: dict[str, tuple]) -> str:
-    return "".join(f'<div><span style="color:rgb({",".join(str(round(255 * c)) for c in rgb)})">&#9632;</span> '
-                   f"{_escape(name.replace('_', ' '))}</div>" for name, rgb in colours.items())
+    return "".join(f"<div>{_swatch(rgb)} {_escape(name.replace('_', ' '))}</div>" for name, rgb in colours.items())
 
 
 def activation_scale(activation: np.ndarray) -> float:
@@ -98,6 +102,14 @@ def _node(path: str) -> list[str]:
 
 def _b64(array: np.ndarray) -> str:
     return base64.b64encode(np.ascontiguousarray(array).tobytes()).decode("ascii")
+
+
+def _css(rgb) -> str:
+    return f"rgb({','.join(str(round(255 * c)) for c in rgb[:3])})"
+
+
+def _swatch(rgb) -> str:
+    return f'<span style="display:inline-block;width:10px;height:10px;background:{_css(rgb)};border:1px solid #555"></span>'
 
 
 def _escape(text: str) -> str:

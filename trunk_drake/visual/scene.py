@@ -16,6 +16,8 @@ from trunk_drake.visual.geometry import Drawing, Motion
 from trunk_drake.visual.meshes import bone_meshes
 
 BONE_RGBA = (0.92, 0.89, 0.81, 1.0)
+MODEL_GHOST_RGBA = (0.92, 0.89, 0.81, 0.55)  # the model's bones when measured motion is shown with them
+DATA_GHOST_RGBA = (0.25, 0.55, 0.95, 0.45)  # the bones posed by measured kinematics
 PLATFORM_RGBA = (0.36, 0.38, 0.44, 1.0)
 PLATFORM_SIZE = (0.50, 0.45, 0.04)  # m: anterior-posterior, lateral, thickness (illustrative seat)
 MUSCLE_LINE_WIDTH = 2.0  # pixels where the browser supports wide lines
@@ -31,7 +33,8 @@ OTHER_GROUP_RGB = (0.3, 0.3, 0.3)
 class PassengerScene:
     """One figure of the trunk model in a Meshcat scene, at rest until posed or animated."""
 
-    def __init__(self, meshcat, drawing: Drawing, figure: str = "passenger", muscles: bool = True, opacity: float = 1.0):
+    def __init__(self, meshcat, drawing: Drawing, figure: str = "passenger", muscles: bool = True,
+                 rgba: tuple = BONE_RGBA):
         self.meshcat, self.drawing, self.figure = meshcat, drawing, figure
         model = drawing.model
         names = model.body_names
@@ -43,7 +46,7 @@ class PassengerScene:
             for b in seg.members:
                 if names[b] in bones:
                     part = f"{path}/{names[b].replace(' ', '_')}"
-                    meshcat.SetObject(part, Mesh(str(bones[names[b]])), Rgba(*BONE_RGBA[:3], opacity))
+                    meshcat.SetObject(part, Mesh(str(bones[names[b]])), Rgba(*rgba))
                     meshcat.SetTransform(part, _transform(R[seg.body].T @ R[b], R[seg.body].T @ (p[b] - p[seg.body])))
         self.muscle_paths = []
         if muscles:
