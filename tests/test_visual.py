@@ -300,3 +300,22 @@ def test_measured_motion_moves_a_second_trunk(model, result, tmp_path):
         _, p = Drawing(model).poses(q_end)
         np.testing.assert_allclose(position[-1], p[lumbar1], atol=1e-12)
         assert ("measured level angles" if kind == "levels" else "spread evenly") in html
+
+
+def test_animate_trial_resimulates_the_data_with_the_given_options(model, tmp_path):
+    """Data made by the model itself: re-simulated from the trial's sampled platform motion with the
+    same options, the model's trunk and the data's coincide."""
+    from trunk_drake.diagram import TrunkOptions
+    from trunk_drake.io.trials import LUMBAR_LEVELS, Trial
+    from trunk_drake.visual import animate_trial
+
+    options = TrunkOptions(stiffness=400.0, kp={"sacrospinalis": 0.5})
+    data = td.simulate(model, duration=DURATION, bandwidth=3.0, options=options)
+    trial = Trial(time=data.time, fs=100.0, platform_displacement=data.platform[:, 0],
+                  levels={c: data.coordinate(c) for c in LUMBAR_LEVELS}, source="self.csv")
+    html = animate_trial(trial, tmp_path / "trial.html", model, options).read_text()
+    (animation,) = [m for m in scene_messages(html) if m["type"] == "set_animation"]
+    tracks = {a["path"]: np.array([k["value"] for k in a["clip"]["tracks"][0]["keys"]]) for a in animation["animations"]}
+    model_l1, data_l1 = tracks["/passenger/bones/lumbar1"], tracks["/data/bones/lumbar1"]
+    assert np.ptp(data_l1[:, 1]) > 0.005  # the trunk moved (m)
+    np.testing.assert_allclose(model_l1, data_l1, atol=2e-4)

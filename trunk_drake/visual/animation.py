@@ -3,13 +3,15 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 
 import numpy as np
+from pydrake.geometry import MeshcatAnimation
 
 from trunk_drake.visual.geometry import Drawing
-from trunk_drake.visual.measured import MeasuredMotion
+from trunk_drake.visual.measured import MeasuredMotion, measured_motion
 from trunk_drake.visual.page import (
     activation_legend,
     activation_scale,
@@ -47,9 +49,6 @@ def animate(result, path, model=None, title: str | None = None, measured: Measur
     scene.pose(q[0])  # the player colours the muscles by activation
     platform = Platform(meshcat, drawing)
     _look_at_trunk(meshcat, drawing)
-
-    from pydrake.geometry import MeshcatAnimation
-
     animation = MeshcatAnimation(frames_per_second=fps)
     animation.set_autoplay(True)
     scene.record(animation, motion)
@@ -65,6 +64,25 @@ def animate(result, path, model=None, title: str | None = None, measured: Measur
     title = title or f"trunk-drake simulation, {result.time[-1] - result.time[0]:g} s"
     player = player_data(fps, scene.segment_paths, scene.muscle_paths, drawing.vertices(), motion.wrap_points, result.activation)
     return write_page(standalone_html(meshcat, title, legend, player), path)
+
+
+def animate_trial(trial, path, model=None, options=None, title: str | None = None, label: str | None = None):
+    """Simulate a trial's platform (or pelvis) motion with `options` (TrunkOptions) and write its
+    page: the model with its muscles, and the trial's measured trunk over it."""
+    from trunk_drake.signals.sampled import SampledSignal
+    from trunk_drake.simulation import simulate
+
+    x = trial.platform_displacement if trial.platform_displacement is not None else trial.pelvis_displacement
+    if x is None:
+        raise ValueError(f"trial {trial.source or ''} has no platform or pelvis displacement to simulate; "
+                         "an animation of data against the model needs the perturbation")
+    model = model or _default_model()
+    t = np.asarray(trial.time, dtype=float) - trial.time[0]
+    result = simulate(model, perturbation=SampledSignal(t, x - x[0]), duration=float(t[-1]), options=options)
+    measured = measured_motion(trial, label)
+    pelvis = measured.coordinates.index("pelvis_tx")
+    measured.q[:, pelvis] -= measured.q[0, pelvis]  # as the simulated platform: from 0
+    return animate(result, path, model, title, measured=dataclasses.replace(measured, time=t))
 
 
 def view_html(path, model=None, q=None, title: str | None = None) -> Path:

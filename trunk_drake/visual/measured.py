@@ -39,3 +39,4 @@ def measured_motion(trial, label: str | None = None) -> MeasuredMotion:
         pelvis = np.zeros_like(trial.time)
     return MeasuredMotion(label or str(trial.source or "data"), np.asarray(trial.time, dtype=float),
                           ["pelvis_tx", *LUMBAR_LEVELS], np.column_stack([pelvis, levels]), note)
+
