@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
+import logging
 import time
 from pathlib import Path
 
@@ -168,9 +169,17 @@ def _default_model():
 
 
 def _meshcat(port: int | None = None):
+    """A Meshcat server on localhost (its own "listening" log line silenced: pages are files,
+    and `serve` prints the address itself)."""
     from pydrake.geometry import Meshcat, MeshcatParams
 
-    meshcat = Meshcat(MeshcatParams(host="localhost", port=port))
+    drake_log = logging.getLogger("drake")
+    level = drake_log.level
+    drake_log.setLevel(logging.WARNING)
+    try:
+        meshcat = Meshcat(MeshcatParams(host="localhost", port=port))
+    finally:
+        drake_log.setLevel(level)
     meshcat.SetProperty("/Axes", "visible", False)
     meshcat.SetProperty("/Grid", "visible", False)
     return meshcat
