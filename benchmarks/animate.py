@@ -18,6 +18,7 @@ import msgpack
 import trunk_drake as td
 from trunk_drake.data import models_dir
 from trunk_drake.simulation import DEFAULT_GAINS, load_reflex_gains
+from trunk_drake.visual.page import embedded_player
 
 
 def page_parts_mb(html: str) -> dict:
@@ -26,7 +27,7 @@ def page_parts_mb(html: str) -> dict:
         message = msgpack.unpackb(base64.b64decode(data), raw=False, strict_map_key=False)
         kind = "bone meshes" if "/bones/" in message.get("path", "") and message["type"] == "set_object" else message["type"]
         parts[kind] = parts.get(kind, 0) + len(data)
-    player = json.loads(re.search(r'id="trunk-drake-player">(.*?)</script>', html, re.S).group(1))
+    player = embedded_player(html)
     parts["muscle wrap points"] = len(player["wrap"]["data"])
     parts["activations"] = len(player["activation"]["data"])
     return {k: round(v / 1e6, 2) for k, v in parts.items()}

@@ -1,9 +1,7 @@
 """The passenger as a web page: bones against MuJoCo, wrap arcs, the exported HTML and its playback."""
 
 import base64
-import json
 import re
-import warnings
 
 import mujoco
 import numpy as np
@@ -12,7 +10,9 @@ import pytest
 import trunk_drake as td
 from trunk_drake.visual.geometry import ARC_POINTS, Drawing, wrap_arcs
 from trunk_drake.visual.meshes import bone_meshes
-from trunk_drake.visual.page import external_urls
+from trunk_drake.visual.page import embedded_player as player
+from trunk_drake.visual.page import external_urls, recorded_positions
+from trunk_drake.visual.page import scene_commands as scene_messages
 
 DURATION = 1.0
 
@@ -32,18 +32,6 @@ def result(model):
 def page(model, result, tmp_path_factory):
     path = tmp_path_factory.mktemp("visual") / "animation.html"
     return td.animate(result, path, model)
-
-
-def scene_messages(html: str) -> list[dict]:
-    """The Meshcat commands embedded in a page (msgpack in base64 data URLs)."""
-    import msgpack
-
-    return [msgpack.unpackb(base64.b64decode(d), raw=False, strict_map_key=False)
-            for d in re.findall(r'fetch\("data:application/octet-binary;base64,([^"]+)"\)', html)]
-
-
-def player(html: str) -> dict:
-    return json.loads(re.search(r'<script type="application/json" id="trunk-drake-player">(.*?)</script>', html, re.S).group(1))
 
 
 # ------------------------------------------------------------------------------ geometry
@@ -290,9 +278,7 @@ def test_measured_motion_moves_a_second_trunk(model, result, tmp_path):
         assert {m["path"].rsplit("/", 1)[1] for m in ghost} == set(bone_meshes())
         assert all(m["object"]["materials"][0]["transparent"] for m in ghost)
         assert not any(m["path"].startswith("/data/muscles") for m in messages if m["type"] == "set_object")
-        (animation,) = [m for m in messages if m["type"] == "set_animation"]
-        clip = next(a["clip"] for a in animation["animations"] if a["path"] == "/data/bones/lumbar1")
-        position = np.array([k["value"] for k in clip["tracks"][0]["keys"]])
+        position = recorded_positions(html)["/data/bones/lumbar1"]
         assert len(position) == len(result.time)
         q_end = np.r_[data.platform[-1, 0], [data.coordinate(c)[-1] for c in LUMBAR_LEVELS]]
         if kind == "total":
@@ -314,8 +300,7 @@ def test_animate_trial_resimulates_the_data_with_the_given_options(model, tmp_pa
     trial = Trial(time=data.time, fs=100.0, platform_displacement=data.platform[:, 0],
                   levels={c: data.coordinate(c) for c in LUMBAR_LEVELS}, source="self.csv")
     html = animate_trial(trial, tmp_path / "trial.html", model, options).read_text()
-    (animation,) = [m for m in scene_messages(html) if m["type"] == "set_animation"]
-    tracks = {a["path"]: np.array([k["value"] for k in a["clip"]["tracks"][0]["keys"]]) for a in animation["animations"]}
+    tracks = recorded_positions(html)
     model_l1, data_l1 = tracks["/passenger/bones/lumbar1"], tracks["/data/bones/lumbar1"]
     assert np.ptp(data_l1[:, 1]) > 0.005  # the trunk moved (m)
     np.testing.assert_allclose(model_l1, data_l1, atol=2e-4)

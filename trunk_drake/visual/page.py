@@ -89,6 +89,26 @@ def player_data(fps: float, segment_paths, muscle_paths, vertices, wrap_points: 
     }
 
 
+def scene_commands(html: str) -> list[dict]:
+    """The Meshcat commands embedded in a page (msgpack in base64 data URLs), decoded."""
+    import msgpack
+
+    return [msgpack.unpackb(base64.b64decode(d), raw=False, strict_map_key=False)
+            for d in re.findall(r'fetch\("data:application/octet-binary;base64,([^"]+)"\)', html)]
+
+
+def recorded_positions(html: str) -> dict[str, np.ndarray]:
+    """Per animated scene path, its recorded position at every frame (n_frames, 3)."""
+    (animation,) = [c for c in scene_commands(html) if c["type"] == "set_animation"]
+    return {a["path"]: np.array([k["value"] for k in next(t for t in a["clip"]["tracks"] if t["name"] == ".position")["keys"]])
+            for a in animation["animations"]}
+
+
+def embedded_player(html: str) -> dict:
+    """The player data of an animation page (see `player_data`)."""
+    return json.loads(re.search(r'<script type="application/json" id="trunk-drake-player">(.*?)</script>', html, re.S).group(1))
+
+
 def write_page(html: str, path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
