@@ -9,6 +9,7 @@ import argparse
 import sys
 
 from trunk_drake.commands import command_modules
+from trunk_drake.model.trunk_model import model_source
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -16,13 +17,23 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     for module in command_modules():
         module.add_command(sub)
+    for command in _leaf_parsers(sub):
+        command.add_argument("--model", default=None, metavar="PATH",
+                             help="an OpenSim .osim model to use instead of the embedded MyoTorso (every model this run loads)")
     return parser
+
+
+def _leaf_parsers(sub):
+    for parser in sub.choices.values():
+        group = parser.get_default("group_commands")
+        yield from (_leaf_parsers(group) if group is not None else (parser,))
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        return int(args.func(args) or 0)
+        with model_source(args.model):
+            return int(args.func(args) or 0)
     except (ValueError, FileNotFoundError, KeyError) as err:
         print(f"trunk-drake: error: {err}", file=sys.stderr)
         return 2

@@ -37,6 +37,10 @@ def run(args) -> int:
         pelvis=args.pelvis, accuracy=args.accuracy, progress=args.progress, **passenger_options(args, model),
     )
     files = result.write(args.out)
+    if model.spec.path_semantics == "opensim":  # --model FILE.osim: results OpenSim loads with that file
+        from trunk_drake.io.opensim_export import write_opensim_results
+
+        files.update(write_opensim_results(result, model, args.out))
     if args.html:
         from pathlib import Path
 

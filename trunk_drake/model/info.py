@@ -70,6 +70,6 @@ def format_model_info(info: dict) -> str:
         f"{100 * ub['com_superior_of_L4_L5_joint_m']:.1f} cm superior to the L4/L5 joint centre; "
         f"{100 * ub['com_anterior_of_L4_body_centre_m']:+.1f} cm anterior to the L4 body centre",
         f"  thesis (Schmid et al. model): {100 * ub['thesis_com_anterior_of_L4_m']:.1f} cm anterior to L4 -> "
-        + ("agrees (within 1 cm)" if ub["agrees_with_thesis"] else "does NOT agree: MyoTorso has no arms and a posterior lumped upper body"),
+        + ("agrees (within 1 cm)" if ub["agrees_with_thesis"] else f"does NOT agree: {info['model']} has no arms and a posterior lumped upper body"),
     ]
     return "\n".join(lines)

@@ -1,4 +1,4 @@
-"""Compare the model with the original OpenSim Lumbar_C_210 model (an oracle; needs `opensim`).
+"""Compare MyoTorso with the original OpenSim Lumbar_C_210 model (test oracle; needs `opensim`).
 
 MyoTorso was converted from Christophy et al.'s Lumbar_C_210.osim. This module loads that
 file with OpenSim, reads its musculotendon lengths at the neutral posture and its Thelen
