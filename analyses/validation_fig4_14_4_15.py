@@ -14,6 +14,7 @@ from trunk_drake.data import models_dir
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.io.experiment import load_experiment
 from trunk_drake.optim.fit import GainLayout, Objective, goodness_of_fit, targets_from_trials
+from trunk_drake.visual import animate_trial
 
 FIT = "fitted_gains_tables4_2_4_3"
 HELD_OUT = ("trial_3hz.csv",)
@@ -36,7 +37,17 @@ def _held_out(model, gains, files):
     layout = GainLayout(tuple(gains["kp"]))
     objective = Objective(model, targets, layout, TrunkOptions(**experiment.options))
     vafs, frfs, series = goodness_of_fit(objective, layout.vector(gains), targets)
-    return {name: {**series[name], "vaf": vafs[name]["lumbar_rotation"], "frf": frfs.get(name)} for name in series}, experiment.noise_rad
+    return {name: {**series[name], "vaf": vafs[name]["lumbar_rotation"], "frf": frfs.get(name)} for name in series}, experiment
+
+
+def _animation(model, gains, experiment, out_dir) -> str:
+    """The held-out trial as a page: the data's trunk over the model's with the fitted gains (a report note)."""
+    trial = experiment.trials[0]
+    name = Path(trial.source).name
+    page = animate_trial(trial, Path(out_dir) / "held_out_trial.html", model, TrunkOptions(**{**experiment.options, **gains}),
+                         title=f"Held-out trial {name}: model with the fitted gains (data in blue)", label=name)
+    return (f"Animation of the held-out trial {name} (opens offline): [{page.name}]({Path(out_dir).name}/{page.name}), "
+            "the SYNTHETIC data's trunk in blue over the model's with the fitted gains.")
 
 
 def _noise_ceiling(data, noise_rad) -> float:
@@ -57,7 +68,8 @@ def run(out_dir, model=None, workers=2, inputs=None, held_out=HELD_OUT):
     for name, s in trained.items():
         s["vaf"] = car["vaf"][name]["lumbar_rotation"]
     thesis.log(f"  predicting the held-out trial(s) {', '.join(held_out)} with the fitted gains ...")
-    predicted, noise = _held_out(model, car["gains"], held_out)
+    predicted, experiment = _held_out(model, car["gains"], held_out)
+    noise = experiment.noise_rad
     runs = {**{f"{Path(n).stem} (fitted)": s for n, s in trained.items()},
             **{f"{Path(n).stem} (held out)": s for n, s in predicted.items()}}
 
@@ -129,7 +141,8 @@ def run(out_dir, model=None, workers=2, inputs=None, held_out=HELD_OUT):
                "VAF here is computed about the means (offsets removed, as the thesis removed offsets); the thesis' eq. 3.3 divides "
                "by the sum of squares of the data. The noise ceiling is the VAF a perfect model reaches on data with the "
                f"reference data's {np.degrees(noise):.2f} deg white noise.",
-               "Fitted and held-out trials share the synthetic data's conditions (models/reference/conditions.toml)."],
+               "Fitted and held-out trials share the synthetic data's conditions (models/reference/conditions.toml).",
+               _animation(model, car["gains"], experiment, out_dir)],
         numbers={"vaf": {label: s["vaf"] for label, s in runs.items()}, "noise_ceiling_vaf": ceilings, "frf_slopes": slopes,
                  "thesis_vaf_percent": thesis_vaf, "gains": car["gains"],
                  "frf": {label: {"frequencies_hz": s["frf"]["frequencies"], "data_gain_deg_per_m": np.degrees(np.abs(s["frf"]["data"])),

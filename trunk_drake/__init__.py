@@ -17,6 +17,7 @@ _API = {
     "fit_reflex_gains": "trunk_drake.optim.fit",
     "stability": "trunk_drake.optim.stability",
     "StabilityResult": "trunk_drake.optim.stability",
+    "animate": "trunk_drake.visual",
 }
 
 __all__ = list(_API)

@@ -22,6 +22,8 @@ def add_command(sub) -> None:
     p.add_argument("--threshold", type=float, default=10.0, help="held-out dBIC needed to claim an effect")
     p.add_argument("--refine", type=count, default=3, help="candidates refined with nonlinear simulations")
     p.add_argument("--workers", type=count, default=2)
+    p.add_argument("--no-animation", action="store_true",
+                   help="skip the two animations of the first trial (nominal and diagnosed model against the data)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.set_defaults(func=run)
 
@@ -45,11 +47,13 @@ def run(args) -> int:
     if args.gains:
         options.update(load_reflex_gains(args.gains))
     noise = np.radians(args.noise_deg) if args.noise_deg is not None else experiment.noise_rad
-    diagnosis = diagnose_gap(load_model("sagittal"), experiment.trials, TrunkOptions(**options), noise=noise,
+    model = load_model("sagittal")
+    diagnosis = diagnose_gap(model, experiment.trials, TrunkOptions(**options), noise=noise,
                              outputs=available_outputs(experiment.trials),
                              candidates=args.candidates, threshold=args.threshold, refine=args.refine,
                              period=experiment.period, fade=experiment.fade, workers=args.workers, progress=not args.json)
-    files = write_diagnosis(diagnosis, args.out)
+    animations = {} if args.no_animation else _animations(model, experiment.trials[0], TrunkOptions(**options), diagnosis, args.out)
+    files = write_diagnosis(diagnosis, args.out, animations)
     if args.json:
         print(json.dumps({"verdict": diagnosis.verdict, "selected": diagnosis.selected, "final": diagnosis.final,
                           "shrink": {k: v for k, v in diagnosis.shrink.items() if k != "per_trial"},
@@ -58,3 +62,17 @@ def run(args) -> int:
     else:
         print(f"{diagnosis.verdict}\nreport: {files['report']}")
     return 0
+
+
+def _animations(model, trial, nominal, diagnosis, out) -> dict:
+    """The first trial against the nominal and the diagnosed model, as pages (data over model)."""
+    from pathlib import Path
+
+    from trunk_drake.visual import animate_trial
+
+    name = Path(trial.source or "trial").name
+    runs = {"nominal": (nominal, "nominal model"),
+            "diagnosed": (diagnosis.final_options, "diagnosed model (" + (", ".join(diagnosis.selected) or "gains refitted") + ")")}
+    return {f"{text} against {name}": animate_trial(trial, Path(out) / f"animation_{key}.html", model, options,
+                                                    title=f"trunk-drake diagnose: {text} against {name}", label=name)
+            for key, (options, text) in runs.items()}

@@ -33,6 +33,8 @@ def add_command(sub) -> None:
                    help="exact prescribed pelvis motion, or the thesis' 10,000 kg force-driven pelvis")
     p.add_argument("--accuracy", type=accuracy, default=DEFAULT_ACCURACY, help="integrator target accuracy, in (0, 1)")
     p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--html", action="store_true",
+                   help="also write animation.html: the run in 3-D (bones, muscles by activation), opens offline")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.add_argument("--progress", action="store_true", help="show a progress bar")
     p.set_defaults(func=run)
@@ -52,6 +54,13 @@ def run(args) -> int:
         from trunk_drake.io.opensim_export import write_opensim_results
 
         files.update(write_opensim_results(result, model, args.out))
+    if args.html:
+        from pathlib import Path
+
+        from trunk_drake.visual import animate
+
+        title = f"trunk-drake simulate --duration {args.duration:g} --bandwidth {args.bandwidth:g}"
+        files["animation"] = animate(result, Path(args.out) / "animation.html", model, title=title)
     summary = {**result.summary(), "files": {k: str(v) for k, v in files.items()}}
     if args.json:
         print_json(summary)

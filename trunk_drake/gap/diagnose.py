@@ -115,9 +115,10 @@ class GapDiagnosis:
     wall_time_s: float
     options: dict = field(default_factory=dict)
     series: dict = field(default_factory=dict)  # per trial: time, data, nominal, refit, effect (lumbar rotation)
+    final_options: TrunkOptions | None = None  # the selected model, to simulate it
 
     def to_dict(self) -> dict:
-        return {k: v for k, v in dataclasses.asdict(self).items() if k != "series"}
+        return {k: v for k, v in dataclasses.asdict(self).items() if k not in ("series", "final_options")}
 
 
 # --------------------------------------------------------------------------- inputs
@@ -664,6 +665,7 @@ def _diagnose(model, data, options, noise, outputs, candidates, threshold, max_e
     shrink = measure_shrinkage(data, variants, float(noise[0]))
     shrink["frf_error"] = frf_errors(data, variants)
     rank = space.directions.shape[1]
+    by_name = {c.name: c for c in candidates}
     final = {"effects": best.values if selected else {},
              "gains": space.gains(space.directions @ best.x[:rank])}
     series = {t.name: {"time": t.time, "data": t.y[:, 0], **{k: (None if v[i] is None else v[i][:, 0]) for k, v in variants.items()}}
@@ -673,7 +675,7 @@ def _diagnose(model, data, options, noise, outputs, candidates, threshold, max_e
                         options={"threshold": threshold, "max_effects": max_effects, "refine": refine, "outputs": list(outputs),
                                  "candidates": [c.name for c in candidates], "scores": scores,
                                  "gain_directions": int(rank), "held_out": "second half of every trial's steady window"},
-                        series=series)
+                        series=series, final_options=space.options_for(best.x, [by_name[e] for e in best.effects]))
 
 
 def _verdict(scores, ranking, selected, threshold) -> str:
