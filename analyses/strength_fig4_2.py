@@ -6,7 +6,7 @@ Solved directly as a linear program and by the thesis' 10 N static-optimisation 
 
 from collections import Counter
 
-from trunk_drake import reproduce as rp
+from trunk_drake import thesis
 from trunk_drake.optim.strength import DIRECTIONS, isometric_strength, strength_report
 
 THESIS = ("Model predictions lie within the in vivo ranges (Paalanne et al. for sagittal, Thomas et al. for lateral "
@@ -17,7 +17,7 @@ THESIS = ("Model predictions lie within the in vivo ranges (Paalanne et al. for 
 
 
 def _plot(path, summaries):
-    plt = rp.pyplot()
+    plt = thesis.pyplot()
     fig, ax = plt.subplots(figsize=(11, 4.8))
     ticks, names = [], []
     pos = 0.0
@@ -45,7 +45,7 @@ def _plot(path, summaries):
     ax.set_ylim(top=ax.get_ylim()[1] * 1.1)
     ax.set_title("Fig. 4.2: trunk-drake (purple; cyan: load at the acromion) vs in vivo comparators (orange, ±1 SD) "
                  "and the thesis' model (olive)", fontsize=10)
-    return rp.save_figure(fig, path)
+    return thesis.save_figure(fig, path)
 
 
 def run(out_dir, model=None, workers=2, inputs=None, sweep=True):
@@ -79,7 +79,7 @@ def run(out_dir, model=None, workers=2, inputs=None, sweep=True):
             f"{', '.join(sorted({s['limiting_coordinate'] for s in summaries.values()}))}. "
             + "; ".join(f"{d}: {v['max_force_N']:.0f} N with the load at the acromion" for d, s in summaries.items()
                         for v in s.get("variants", {}).values()) + ".")
-    return rp.section(
+    return thesis.section(
         THESIS, ours,
         comparison=[["extension", "excessive (above in vivo), strongest",
                      f"{forces['extension']:.0f} N; in vivo comparators: {in_vivo('extension')}"],

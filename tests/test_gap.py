@@ -73,6 +73,19 @@ def test_diagnosis_names_withheld_damping_and_shrinks_the_gap(model, tmp_path):
     assert d.final["effects"]["extra_damping"]["damping"] == pytest.approx(20.0, rel=0.5)
     assert d.shrink["gap"]["effect"] < d.shrink["gap"]["nominal"]
     assert d.shrink["reduction_above_noise"] > 0.5
-    files = write_diagnosis(d, tmp_path)
+    # the key run as pages, data over model: the diagnosed model follows the data closer than the nominal one
+    from trunk_drake.visual import animate_trial
+    from trunk_drake.visual.page import recorded_positions
+
+    assert d.final_options.damping != nominal.damping
+    pages = {f"{k} model against trial a": animate_trial(trials[0], tmp_path / f"{k}.html", model, options)
+             for k, options in (("nominal", nominal), ("diagnosed", d.final_options))}
+    files = write_diagnosis(d, tmp_path, pages)
     text = files["report"].read_text()
     assert "Where the gap lies" in text and "extra_damping" in text and files["frf_plot"].exists()
+    assert "[diagnosed model against trial a](diagnosed.html)" in text
+    miss = {}
+    for label, page in pages.items():
+        tracks = recorded_positions(page.read_text())
+        miss[label] = np.sqrt(np.mean(np.sum((tracks["/passenger/bones/lumbar1"] - tracks["/data/bones/lumbar1"]) ** 2, axis=1)))
+    assert miss["diagnosed model against trial a"] < miss["nominal model against trial a"], miss

@@ -10,7 +10,7 @@ import pytest
 
 import trunk_drake as td
 from trunk_drake.cli import main
-from trunk_drake.io.storage import read_storage
+from trunk_drake.io.storage import read_table
 
 
 def test_simulate_with_osim_model_writes_a_motion_opensim_reads(lumbar_c210_path, tmp_path):
@@ -18,8 +18,8 @@ def test_simulate_with_osim_model_writes_a_motion_opensim_reads(lumbar_c210_path
     out = tmp_path / "sim"
     assert main(["simulate", "--model", str(lumbar_c210_path), "--duration", "0.4", "--out", str(out)]) == 0
     model = td.load_model(lumbar_c210_path, dofs="sagittal")
-    states = read_storage(out / "states.sto")
-    q = np.column_stack([states.data[:, states.labels.index(c)] for c in model.coordinates])
+    kinematics = read_table(out / "kinematics.csv")  # trunk-drake's names and signs (states.sto has the .osim's)
+    q = np.column_stack([kinematics.column(f"{c}_{'m' if c == 'pelvis_tx' else 'rad'}") for c in model.coordinates])
 
     table = osim.TimeSeriesTable(str(out / "motion.mot"))
     assert table.getTableMetaDataAsString("inDegrees") == "yes"

@@ -55,6 +55,19 @@ _MYOTORSO_LEVEL_JOINTS = {
     "L2_L3": ("L2_L3_FE", "L2_L3_LB", "L2_L3_AR"),
     "L1_L2": ("L1_L2_FE", "L1_L2_LB", "L1_L2_AR"),
 }
+_DOF_KINDS = ("FE", "LB", "AR")
+
+
+def opensim_coordinate(name: str) -> tuple[str, float] | None:
+    """(name, sign) of coordinate `name` in MyoTorso and Lumbar_C_210.osim, which share joint
+    names and axes: their value is sign * ours (flexion is negative there). None for a
+    coordinate they do not have (``pelvis_tx``: their sacrum is welded to the ground)."""
+    level, _, kind = name.rpartition("_")
+    if level not in _MYOTORSO_LEVEL_JOINTS or kind not in _DOF_KINDS:
+        return None
+    return _MYOTORSO_LEVEL_JOINTS[level][_DOF_KINDS.index(kind)], (-1.0 if kind == "FE" else 1.0)
+
+
 PELVIS_BODY = "sacrum"
 PELVIS_AXIS = np.array([1.0, 0.0, 0.0])  # anterior, in the sacrum frame
 DOFS = ("sagittal", "spine3d", "all")  # "all": every joint of the spec, as defined there
@@ -84,13 +97,11 @@ def coordinates_for(spec: ModelSpec, dofs: str, pelvis_free: bool = True) -> lis
     coords: list[Coordinate] = []
     if dofs == "sagittal" and pelvis_free:
         coords.append(_pelvis_coordinate(spec))
-    suffixes = ("FE",) if dofs == "sagittal" else ("FE", "LB", "AR")
+    suffixes = ("FE",) if dofs == "sagittal" else _DOF_KINDS
     for level in LEVELS:
-        for suffix, source in zip(("FE", "LB", "AR"), _MYOTORSO_LEVEL_JOINTS[level]):
-            if suffix not in suffixes:
-                continue
+        for suffix in suffixes:
+            source, sign = opensim_coordinate(f"{level}_{suffix}")
             j = spec.joint(source)
-            sign = -1.0 if suffix == "FE" else 1.0
             lo, hi = sorted((sign * j.range[0], sign * j.range[1]))
             coords.append(Coordinate(f"{level}_{suffix}", j.body, j.kind, sign * j.axis, source, sign, (lo, hi)))
     return coords

@@ -17,7 +17,7 @@ from trunk_drake.model.kinematics import TreeKinematics
 from trunk_drake.model.myotorso import read_myotorso
 from trunk_drake.model.osim import load_osim_spec
 from trunk_drake.model.osim_kinematics import OsimKinematics
-from trunk_drake.model.paths import MusclePaths, PathState
+from trunk_drake.model.paths import MusclePaths, PathLayout, PathPoints, PathState
 from trunk_drake.model.plant import DOFS, Coordinate, build_plant
 from trunk_drake.model.spec import ModelSpec
 
@@ -59,11 +59,14 @@ class TrunkModel:
     def n_muscles(self) -> int:
         return len(self.spec.muscles)
 
+    @property
+    def load_options(self) -> dict:
+        """The options of `load_model` that, with `spec`, rebuild this model (worker processes do)."""
+        return {"dofs": self.dofs, "pelvis_free": self.pelvis_free, "pelvis_mass": self.pelvis_mass}
+
     def variant(self, **changes) -> "TrunkModel":
         """The same model (same spec) rebuilt with other options of `load_model`."""
-        options = {"dofs": self.dofs, "pelvis_free": self.pelvis_free, "pelvis_mass": self.pelvis_mass}
-        options.update(changes)
-        return load_model(spec=self.spec, **options)
+        return load_model(spec=self.spec, **{**self.load_options, **changes})
 
     def muscle_array(self, attribute: str) -> np.ndarray:
         """A per-muscle parameter as an array, e.g. ``muscle_array("max_isometric_force")``."""
@@ -91,16 +94,20 @@ class TrunkModel:
                 )
         return q
 
+    def body_poses(self, context, bodies=None) -> tuple[np.ndarray, np.ndarray]:
+        """World rotations (n_bodies, 3, 3) and positions (n_bodies, 3) of the plant's bodies,
+        filled for `bodies` (indices; default: those carrying sites, wraps or joint frames)."""
+        all_poses = self.plant.get_body_poses_output_port().Eval(context)
+        poses = np.zeros((len(all_poses), 3, 4))
+        for i in self._pose_bodies if bodies is None else bodies:
+            poses[i] = all_poses[i].GetAsMatrix34()
+        return poses[:, :, :3], poses[:, :, 3]
+
     def path_state_from_context(self, context, v=None) -> PathState:
         """Muscle path kinematics for a plant context (body poses read from the plant)."""
-        plant = self.plant
-        all_poses = plant.get_body_poses_output_port().Eval(context)
-        poses = np.zeros((len(all_poses), 3, 4))
-        for i in self._pose_bodies:  # only bodies that carry sites, wraps or joint frames
-            poses[i] = all_poses[i].GetAsMatrix34()
-        R, p = poses[:, :, :3], poses[:, :, 3]
+        R, p = self.body_poses(context)
         if isinstance(self._paths, OsimKinematics):
-            return self._paths.path_state(R, p, plant.GetPositions(context), self._joint_frames(), v)
+            return self._paths.path_state(R, p, self.plant.GetPositions(context), self._joint_frames(), v)
         axes, origins = self._joint_frames()(R, p)
         return self._paths.compute(R, p, axes, origins, v)
 
@@ -174,6 +181,28 @@ class TrunkModel:
         J = plant.CalcJacobianCenterOfMassTranslationalVelocity(self._context, JacobianWrtVariable.kV, world, world)
         return plant.CalcTotalMass(self._context) * (J.T @ np.asarray(direction, dtype=float))
 
+    def path_points(self, q) -> PathPoints:
+        """World points of all muscle paths (sites, wrap tangent points) at q, for drawing;
+        `path_layout` tells which belong to which muscle. No joint-range warning: drawing only."""
+        self._mujoco_paths()
+        self.plant.SetPositions(self._context, self.check_q(q, check_range=False))
+        return self._paths.points(*self.body_poses(self._context))
+
+    @property
+    def path_layout(self) -> PathLayout:
+        return self._mujoco_paths().layout
+
+    def _mujoco_paths(self) -> MusclePaths:
+        if isinstance(self._paths, OsimKinematics):
+            raise ValueError(f"model {self.spec.name!r} has OpenSim muscle paths: drawing them (path points) is only "
+                             "implemented for MyoTorso's paths; use the default model")
+        return self._paths
+
+    @property
+    def body_names(self) -> list[str]:
+        """Names of the plant's bodies in body-index order (the order of `body_poses`)."""
+        return [self.plant.get_body(BodyIndex(i)).name() for i in range(self.plant.num_bodies())]
+
     def center_of_mass(self, q) -> np.ndarray:
         """Whole-model centre of mass in the world at q (follower bodies at their true poses), m.
 
@@ -230,7 +259,7 @@ def _build(spec: ModelSpec, dofs: str, pelvis_mass: float | None, pelvis_free: b
         joint = plant.GetJointByName(c.name)
         for b in plant.GetBodiesKinematicallyAffectedBy([JointIndex(int(joint.index()))]):
             moves[int(b), k] = 1.0
-    names = [plant.get_body(_body_index(i)).name() for i in range(n_bodies)]
+    names = [plant.get_body(BodyIndex(i)).name() for i in range(n_bodies)]
     kinematics = None
     if spec.path_semantics == "opensim":
         paths = OsimKinematics(spec, coords, names, moves)
@@ -241,10 +270,6 @@ def _build(spec: ModelSpec, dofs: str, pelvis_mass: float | None, pelvis_free: b
                        _paths=paths, _context=plant.CreateDefaultContext(), _kinematics=kinematics)
     model._init_joints()
     return model
-
-
-def _body_index(i: int) -> BodyIndex:
-    return BodyIndex(i)
 
 
 MODEL_ENV = "TRUNK_DRAKE_MODEL"  # an .osim path: the model `load_model()` loads when none is given
