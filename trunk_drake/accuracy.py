@@ -27,7 +27,7 @@ def trial_options(model, name: str) -> dict:
     """`simulate` keywords (besides the integrator's) of check trial `name`."""
     from trunk_drake.data import models_dir
     from trunk_drake.optim.static import coactivation
-    from trunk_drake.reproduce import reference_truth_options, truth_gains
+    from trunk_drake.thesis import reference_truth_options, truth_gains
     from trunk_drake.simulation import DEFAULT_GAINS, load_reflex_gains
 
     if name == "folding":
