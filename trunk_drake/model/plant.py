@@ -1,4 +1,4 @@
-"""Build a Drake MultibodyPlant from a ModelSpec in one of two joint configurations.
+"""Build a Drake MultibodyPlant from a ModelSpec in one of its joint configurations.
 
 ``"sagittal"`` (dynamic analysis, thesis section 3.3.2): the sacrum slides on a prismatic
 anterior-posterior joint ``pelvis_tx`` and the five lumbar levels are independent revolute
@@ -7,6 +7,12 @@ are welded at zero.
 
 ``"spine3d"`` (static analysis): the pelvis is welded to the ground and every lumbar level
 has flexion-extension (``*_FE``), lateral bending (``*_LB``) and axial rotation (``*_AR``).
+
+``"rhythm"`` (the configuration the model's authors built it for): ``pelvis_tx`` and one
+coordinate ``lumbar_FE``, the lumbar flexion (S1-L1, = the sum of the five level angles), which
+turns every level and the routing bodies in the fixed proportions of the spec's rhythm
+(`ModelSpec.rhythm`, the constrained source model's couplings). Drake's continuous plant has no
+constraints, so the plant is a `CoupledPlant` simulating the chain in that one coordinate.
 
 ``"all"``: every joint of the spec with its own name and sign (for user and test models).
 
@@ -18,18 +24,19 @@ y superior, z right):
 * ``*_LB`` = MyoTorso angle about +x (anterior): positive tilts the trunk to the right.
 * ``*_AR`` = MyoTorso angle about +y (superior): positive turns the trunk to the left.
 * ``pelvis_tx`` is positive anteriorly (sacrum x axis), metres.
+* ``lumbar_FE`` is positive in flexion: ``lumbar_FE = -rhythm.total * driver``.
 
-MyoTorso's coupling constraints (all lumbar levels driven by ``flex_extension`` etc.) are
-removed. MyoTorso's ``Abdomen`` routing body is already a child of ``lumbar5`` but was
-coupled to ``flex_extension`` (``Abs_r3 = 0.6429 * flex_extension``) with locked
-translations; with the couplings removed it is welded to ``lumbar5`` at zero, so it moves
-rigidly with L5 during lumbar bending: the equivalent of the thesis' re-parenting of the
-abdominal wrap surface from the sacrum to L5 (seed section 3.3.2).
+In ``sagittal`` and ``spine3d`` MyoTorso's coupling constraints (all lumbar levels driven by
+``flex_extension`` etc.) are removed. MyoTorso's ``Abdomen`` routing body is a child of
+``lumbar5`` coupled to ``flex_extension`` (``Abs_r3 = 0.6429 * flex_extension``) with locked
+translations; without the couplings it is welded to ``lumbar5`` at zero, so it moves rigidly
+with L5 during lumbar bending: the equivalent of the thesis' re-parenting of the abdominal wrap
+surface from the sacrum to L5 (seed section 3.3.2). In ``rhythm`` it turns with its coupling.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
@@ -43,6 +50,7 @@ from pydrake.multibody.tree import (
 )
 from pydrake.common.eigen_geometry import Quaternion
 
+from trunk_drake.model.coupled import CoupledPlant
 from trunk_drake.model.spec import ModelSpec
 
 LEVELS = ("L5_S1", "L4_L5", "L3_L4", "L2_L3", "L1_L2")
@@ -56,7 +64,8 @@ _MYOTORSO_LEVEL_JOINTS = {
 }
 PELVIS_BODY = "sacrum"
 PELVIS_AXIS = np.array([1.0, 0.0, 0.0])  # anterior, in the sacrum frame
-DOFS = ("sagittal", "spine3d", "all")  # "all": every joint of the spec, as defined there
+DOFS = ("sagittal", "spine3d", "rhythm", "all")  # "all": every joint of the spec, as defined there
+RHYTHM_COORDINATE = "lumbar_FE"
 
 
 @dataclass(frozen=True)
@@ -77,20 +86,73 @@ def coordinates_for(spec: ModelSpec, dofs: str, pelvis_free: bool = True) -> lis
     if dofs not in DOFS:
         raise ValueError(f"unknown configuration dofs={dofs!r}; expected one of {DOFS}")
     if dofs == "all":
-        return [Coordinate(j.name, j.body, j.kind, np.asarray(j.axis, float), j.name, 1.0, j.range) for j in spec.joints]
+        return [_as_is(j) for j in spec.joints]
     coords: list[Coordinate] = []
-    if dofs == "sagittal" and pelvis_free:
+    if dofs in ("sagittal", "rhythm") and pelvis_free:
         coords.append(Coordinate("pelvis_tx", PELVIS_BODY, "slide", PELVIS_AXIS.copy(), None, 1.0, (-1.0, 1.0)))
+    if dofs == "rhythm":
+        rhythm = _rhythm(spec)
+        coords += [_flexion(spec, f"{level}_FE", joint) for level, joint in zip(LEVELS, rhythm.levels)]
+        return coords + [_as_is(spec.joint(j)) for j in rhythm.routing]
     suffixes = ("FE",) if dofs == "sagittal" else ("FE", "LB", "AR")
     for level in LEVELS:
         for suffix, source in zip(("FE", "LB", "AR"), _MYOTORSO_LEVEL_JOINTS[level]):
             if suffix not in suffixes:
                 continue
-            j = spec.joint(source)
-            sign = -1.0 if suffix == "FE" else 1.0
-            lo, hi = sorted((sign * j.range[0], sign * j.range[1]))
-            coords.append(Coordinate(f"{level}_{suffix}", j.body, j.kind, sign * j.axis, source, sign, (lo, hi)))
+            if suffix == "FE":
+                coords.append(_flexion(spec, f"{level}_FE", source))
+            else:
+                coords.append(replace(_as_is(spec.joint(source)), name=f"{level}_{suffix}"))
     return coords
+
+
+def _as_is(j) -> Coordinate:
+    """A spec joint as a coordinate with the source's own sign."""
+    return Coordinate(j.name, j.body, j.kind, np.asarray(j.axis, float), j.name, 1.0, tuple(j.range))
+
+
+def _flexion(spec: ModelSpec, name: str, source: str) -> Coordinate:
+    """A flexion-extension joint, positive in flexion (the source rotates about +z = extension)."""
+    j = spec.joint(source)
+    lo, hi = sorted((-j.range[0], -j.range[1]))
+    return Coordinate(name, j.body, j.kind, -np.asarray(j.axis, float), source, -1.0, (lo, hi))
+
+
+def _rhythm(spec: ModelSpec):
+    rhythm = spec.rhythm
+    if rhythm is None:
+        raise ValueError(f"model {spec.name!r} defines no lumbar rhythm (ModelSpec.rhythm): use dofs='sagittal' or 'spine3d'")
+    if len(rhythm.levels) != len(LEVELS) or not rhythm.total > 0:
+        raise ValueError(f"the rhythm of {spec.name!r} must turn {len(LEVELS)} levels ({', '.join(LEVELS)}) with a positive "
+                         f"total ratio; it has levels {list(rhythm.levels)} with ratios {list(rhythm.level_ratios)}")
+    return rhythm
+
+
+def rhythm_coupling(spec: ModelSpec, joints: list[Coordinate]) -> tuple[np.ndarray, list[Coordinate]]:
+    """The coupling matrix G (joints x coordinates, ``q_joints = G q``) and the rhythm's coordinates.
+
+    ``lumbar_FE`` is scaled to the sum of the level angles (the lumbar rotation): each level turns
+    ``level_ratio / total`` of it; a routing joint turns ``-routing_ratio / total`` of it in its
+    source sign (the levels' flexion is minus the source angle). Its range keeps every coupled
+    joint within its own range.
+    """
+    rhythm = _rhythm(spec)
+    share = {f"{level}_FE": r / rhythm.total for level, r in zip(LEVELS, rhythm.level_ratios)}
+    share.update({j: -r / rhythm.total for j, r in zip(rhythm.routing, rhythm.routing_ratios)})
+    coords = [c for c in joints if c.name == "pelvis_tx"]
+    G = np.zeros((len(joints), len(coords) + 1))
+    lo, hi = -np.inf, np.inf
+    for i, c in enumerate(joints):
+        if c.name == "pelvis_tx":
+            G[i, 0] = 1.0
+            continue
+        G[i, -1] = share[c.name]
+        bounds = np.asarray(c.range) / share[c.name]
+        lo, hi = max(lo, bounds.min()), min(hi, bounds.max())
+    driver = spec.joint(rhythm.levels[0])
+    coords.append(Coordinate(RHYTHM_COORDINATE, driver.body, "hinge", -np.asarray(driver.axis, float), rhythm.driver,
+                             -rhythm.total, (float(lo), float(hi))))
+    return G, coords
 
 
 def _transform(pos, quat) -> RigidTransform:
@@ -115,14 +177,31 @@ def build_plant(spec: ModelSpec, dofs: str = "sagittal", pelvis_mass: float | No
     through massless intermediate bodies (one revolute joint each), which reproduces
     MuJoCo's sequential joint composition. `pelvis_mass` overrides the sacrum mass (the
     thesis used 10,000 kg for its force-driven perturbation). With ``pelvis_free=False``
-    the sagittal model has no ``pelvis_tx`` (pelvis welded, e.g. to a moving frame).
+    the sagittal and rhythm models have no ``pelvis_tx`` (pelvis welded, e.g. to a moving frame).
+    For ``"rhythm"`` the plant is a `CoupledPlant` around the plant of the coupled joints
+    (its `joints`), and the coordinates are ``pelvis_tx`` and ``lumbar_FE``.
     """
-    coords = coordinates_for(spec, dofs, pelvis_free)
+    plant, joints = _multibody_plant(spec, coordinates_for(spec, dofs, pelvis_free), pelvis_mass)
+    if dofs != "rhythm":
+        return plant, joints
+    G, coords = rhythm_coupling(spec, joints)
+    return CoupledPlant(plant, G, [c.name for c in coords], joints), coords
+
+
+def _multibody_plant(spec: ModelSpec, coords: list[Coordinate], pelvis_mass: float | None) -> tuple[MultibodyPlant, list[Coordinate]]:
+    plant = MultibodyPlant(time_step=0.0)
+    add_to_plant(plant, spec, coords, pelvis_mass)
+    plant.Finalize()
+    order = sorted(coords, key=lambda c: plant.GetJointByName(c.name).position_start())
+    return plant, order
+
+
+def add_to_plant(plant: MultibodyPlant, spec: ModelSpec, coords: list[Coordinate], pelvis_mass: float | None = None) -> None:
+    """Add the bodies of `spec` to an unfinalized `plant`, movable on `coords` and welded elsewhere."""
     by_body: dict[str, list[Coordinate]] = {}
     for c in coords:
         by_body.setdefault(c.body, []).append(c)
 
-    plant = MultibodyPlant(time_step=0.0)
     plant.mutable_gravity_field().set_gravity_vector(np.asarray(spec.gravity, dtype=float))
     drake_bodies = {}
     for b in spec.bodies:
@@ -156,9 +235,6 @@ def build_plant(spec: ModelSpec, dofs: str = "sagittal", pelvis_mass: float | No
                 # next joint's anchor, expressed from this joint's anchor
                 offset = _anchor(spec, c).inverse().multiply(_anchor(spec, chain[k + 1]))
                 frame_on_parent = plant.AddFrame(_fixed_frame(f"{b.name}_{chain[k + 1].name}_F", dummy.body_frame(), offset))
-    plant.Finalize()
-    order = sorted(coords, key=lambda c: plant.GetJointByName(c.name).position_start())
-    return plant, order
 
 
 def _anchor(spec: ModelSpec, c: Coordinate) -> RigidTransform:

@@ -10,8 +10,9 @@ from pydrake.multibody.tree import BodyIndex, JointIndex
 
 from trunk_drake.model.architecture import with_hill_parameters
 from trunk_drake.model.myotorso import read_myotorso
+from trunk_drake.model.coupled import CoupledPlant
 from trunk_drake.model.paths import MusclePaths, PathState
-from trunk_drake.model.plant import DOFS, Coordinate, build_plant
+from trunk_drake.model.plant import DOFS, LEVELS, Coordinate, build_plant
 from trunk_drake.model.spec import ModelSpec
 
 
@@ -20,7 +21,10 @@ class TrunkModel:
     """A finalized plant with named coordinates and vectorised muscle path kinematics.
 
     Build it with `load_model`. `path_state(q, v)` evaluates all 210 muscle paths at once;
-    every system and optimiser uses it (or `path_state_from_context`).
+    every system and optimiser uses it (or `path_state_from_context`). In the ``"rhythm"``
+    configuration the plant is a `CoupledPlant`: `joint_info` lists the joints it couples and
+    `coupling` maps the coordinates onto them (``q_joints = coupling @ q``); otherwise the joints
+    are the coordinates and `coupling` is None.
     """
 
     spec: ModelSpec
@@ -29,6 +33,8 @@ class TrunkModel:
     pelvis_mass: float | None
     plant: object
     coordinate_info: list[Coordinate]
+    joint_info: list[Coordinate]
+    coupling: np.ndarray | None
     _paths: MusclePaths = field(repr=False)
     _context: object = field(repr=False)
     _warned: set = field(default_factory=set, repr=False)
@@ -50,6 +56,19 @@ class TrunkModel:
     @property
     def n_muscles(self) -> int:
         return len(self.spec.muscles)
+
+    @property
+    def levels(self) -> list[str]:
+        """The intervertebral flexion-extension angles (where bushings act), root to tip."""
+        names = [c.name for c in self.joint_info]
+        return [f"{lvl}_FE" for lvl in LEVELS if f"{lvl}_FE" in names] or [c.name for c in self.joint_info if c.kind == "hinge"]
+
+    @property
+    def level_matrix(self) -> np.ndarray:
+        """(n_levels, n_coordinates): level angles = level_matrix @ q; its sum over levels is the lumbar rotation."""
+        names = [c.name for c in self.joint_info]
+        rows = np.eye(len(names))[[names.index(n) for n in self.levels]]
+        return rows if self.coupling is None else rows @ self.coupling
 
     def variant(self, **changes) -> "TrunkModel":
         """The same model (same spec) rebuilt with other options of `load_model`."""
@@ -94,7 +113,11 @@ class TrunkModel:
         Rj = R[self._joint_body]
         axes = (Rj @ self._joint_axis[:, :, None])[:, :, 0]
         origins = (Rj @ self._joint_anchor[:, :, None])[:, :, 0] + p[self._joint_body]
-        return self._paths.compute(R, p, axes, origins, v)
+        if self.coupling is None:
+            return self._paths.compute(R, p, axes, origins, v)
+        state = self._paths.compute(R, p, axes, origins, None if v is None else self.coupling @ np.asarray(v, float))
+        state.moment_arms = state.moment_arms @ self.coupling  # -dL/dq = -(dL/dq_joints) G
+        return state
 
     def path_state(self, q, v=None) -> PathState:
         """Lengths (m), moment arms (m or m/rad, = -dL/dq) and, with v, lengthening velocities."""
@@ -117,11 +140,11 @@ class TrunkModel:
         return self.path_state(q, v).velocities
 
     # ---- set-up --------------------------------------------------------------------
-    def _init_joints(self):
-        """Per coordinate: the body carrying its child frame, axis and anchor in that body."""
+    def _init_joints(self, plant):
+        """Per joint of `plant` (the MultibodyPlant): the body carrying its child frame, axis and anchor in that body."""
         body, axis, anchor = [], [], []
-        for c in self.coordinate_info:
-            joint = self.plant.GetJointByName(c.name)
+        for c in self.joint_info:
+            joint = plant.GetJointByName(c.name)
             frame = joint.frame_on_child()
             X_BM = frame.GetFixedPoseInBodyFrame()
             axis_M = joint.revolute_axis() if c.kind == "hinge" else joint.translation_axis()
@@ -136,16 +159,20 @@ class TrunkModel:
 
 def _build(spec: ModelSpec, dofs: str, pelvis_mass: float | None, pelvis_free: bool) -> TrunkModel:
     plant, coords = build_plant(spec, dofs, pelvis_mass=pelvis_mass, pelvis_free=pelvis_free)
-    n_bodies = plant.num_bodies()
-    moves = np.zeros((n_bodies, len(coords)))
-    for k, c in enumerate(coords):
-        joint = plant.GetJointByName(c.name)
-        for b in plant.GetBodiesKinematicallyAffectedBy([JointIndex(int(joint.index()))]):
+    coupled = isinstance(plant, CoupledPlant)
+    bodies, joints = (plant.full, plant.joints) if coupled else (plant, coords)
+    n_bodies = bodies.num_bodies()
+    moves = np.zeros((n_bodies, len(joints)))
+    for k, c in enumerate(joints):
+        joint = bodies.GetJointByName(c.name)
+        for b in bodies.GetBodiesKinematicallyAffectedBy([JointIndex(int(joint.index()))]):
             moves[int(b), k] = 1.0
-    names = [plant.get_body(_body_index(i)).name() for i in range(n_bodies)]
-    paths = MusclePaths(spec, names, [c.kind for c in coords], moves)
-    model = TrunkModel(spec=spec, dofs=dofs, pelvis_free=pelvis_free, pelvis_mass=pelvis_mass, plant=plant, coordinate_info=coords, _paths=paths, _context=plant.CreateDefaultContext())
-    model._init_joints()
+    names = [bodies.get_body(_body_index(i)).name() for i in range(n_bodies)]
+    paths = MusclePaths(spec, names, [c.kind for c in joints], moves)
+    model = TrunkModel(spec=spec, dofs=dofs, pelvis_free=pelvis_free, pelvis_mass=pelvis_mass, plant=plant, coordinate_info=coords,
+                       joint_info=joints, coupling=plant.coupling if coupled else None, _paths=paths,
+                       _context=plant.CreateDefaultContext())
+    model._init_joints(bodies)
     return model
 
 
@@ -155,7 +182,7 @@ def _body_index(i: int) -> BodyIndex:
 
 def load_model(dofs: str = "sagittal", spec: ModelSpec | None = None, pelvis_mass: float | None = None,
                pelvis_free: bool = True) -> TrunkModel:
-    """The default MyoTorso trunk model in configuration `dofs` ("sagittal" or "spine3d").
+    """The default MyoTorso trunk model in configuration `dofs` ("sagittal", "spine3d" or "rhythm").
 
     Hill fiber and tendon lengths are derived from the neutral-posture musculotendon lengths
     by Christophy et al.'s method unless `spec` already carries them. `pelvis_mass` replaces
