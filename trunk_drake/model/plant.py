@@ -147,8 +147,9 @@ def rhythm_coupling(spec: ModelSpec, joints: list[Coordinate]) -> tuple[np.ndarr
             G[i, 0] = 1.0
             continue
         G[i, -1] = share[c.name]
-        bounds = np.asarray(c.range) / share[c.name]
-        lo, hi = max(lo, bounds.min()), min(hi, bounds.max())
+        if share[c.name]:
+            bounds = np.asarray(c.range) / share[c.name]
+            lo, hi = max(lo, bounds.min()), min(hi, bounds.max())
     driver = spec.joint(rhythm.levels[0])
     coords.append(Coordinate(RHYTHM_COORDINATE, driver.body, "hinge", -np.asarray(driver.axis, float), rhythm.driver,
                              -rhythm.total, (float(lo), float(hi))))

@@ -150,10 +150,12 @@ def _load_lp(balance: MomentBalance, per_newton, min_activation: float, max_acti
     prog = MathematicalProgram()
     a = prog.NewContinuousVariables(n, "a")
     force = prog.NewContinuousVariables(1, "F")
+    d = prog.NewContinuousVariables(balance.deflection.shape[1], "d")
     prog.AddBoundingBoxConstraint(min_activation, max_activation, a)
     prog.AddBoundingBoxConstraint(0.0, FORCE_CAP, force)
-    constraint = prog.AddLinearEqualityConstraint(np.hstack([balance.activation_matrix, per_newton[:, None]]), balance.target,
-                                                  np.concatenate([a, force]))
+    prog.AddBoundingBoxConstraint(-balance.deflection_limit, balance.deflection_limit, d)
+    constraint = prog.AddLinearEqualityConstraint(balance.with_deflection(np.hstack([balance.activation_matrix, per_newton[:, None]])),
+                                                  balance.target, np.concatenate([a, force, d]))
     prog.AddLinearCost(-np.ones(1) if maximise else np.ones(1), force)
     return ClarabelSolver().Solve(prog), force, constraint
 
