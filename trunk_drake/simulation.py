@@ -11,7 +11,7 @@ import numpy as np
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import EventStatus
 
-from trunk_drake.diagram import TrunkDiagram, TrunkOptions, build_trunk_diagram
+from trunk_drake.diagram import SLIDING_PELVIS, TrunkDiagram, TrunkOptions, build_trunk_diagram
 from trunk_drake.metadata import run_metadata
 
 DEFAULT_INTEGRATOR = "radau3"  # L-stable: the vertebral damping modes reach ~4000 1/s
@@ -49,6 +49,7 @@ class SimulationResult:
     wall_time_s: float
     options: dict
     metadata: dict = field(default_factory=dict)
+    levels: dict = field(default_factory=dict)  # level angle (rad) by name, L5_S1_FE ... L1_L2_FE (any configuration)
 
     @property
     def sim_time_s(self) -> float:
@@ -59,9 +60,12 @@ class SimulationResult:
         return self.sim_time_s / self.wall_time_s if self.wall_time_s > 0 else float("inf")
 
     def coordinate(self, name: str) -> np.ndarray:
-        if name not in self.coordinates:
-            raise KeyError(f"no coordinate {name!r}; coordinates: {self.coordinates}")
-        return self.q[:, self.coordinates.index(name)]
+        """A coordinate's trajectory, or a level angle's (also in a coupled configuration, e.g. the rhythm)."""
+        if name in self.coordinates:
+            return self.q[:, self.coordinates.index(name)]
+        if name in self.levels:
+            return self.levels[name]
+        raise KeyError(f"no coordinate or level {name!r}; coordinates: {self.coordinates}, levels: {list(self.levels)}")
 
     def summary(self) -> dict:
         """Numbers a user checks first (JSON-friendly), with a warning when the trunk left the
@@ -255,7 +259,8 @@ def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, se
     coords = list(td.model.coordinates)
     # the platform signal is known analytically: sample it exactly (not from the step-wise log)
     platform = np.column_stack(signal.evaluate(t)) if signal is not None else np.zeros((len(t), 3))
-    if td.model.dofs == "sagittal" and not td.model.pelvis_free:  # prescribed: the pelvis follows the platform
+    levels = dict(zip(td.model.levels, (q @ td.model.level_matrix.T).T))
+    if td.model.dofs in SLIDING_PELVIS and not td.model.pelvis_free:  # prescribed: the pelvis follows the platform
         coords = ["pelvis_tx", *coords]
         q = np.column_stack([platform[:, 0], q])
         v = np.column_stack([platform[:, 1], v])
@@ -276,7 +281,7 @@ def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, se
         activation=logs["activation"], excitation=logs["excitation"], muscle_force=logs["tendon_force"],
         normalized_fiber_length=logs["normalized_fiber_length"], normalized_fiber_velocity=logs["normalized_fiber_velocity"],
         fiber_length=logs["fiber_length"],
-        platform=platform, stats=stats, wall_time_s=wall, options=opts,
+        platform=platform, stats=stats, wall_time_s=wall, options=opts, levels=levels,
         metadata=run_metadata(td.model, seed=seed, bandwidth=bandwidth, perturbation=getattr(signal, "to_dict", lambda: None)()),
     )
 
