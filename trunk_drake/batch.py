@@ -111,7 +111,6 @@ def run_case(case: dict) -> dict:
 
 
 def _run_case(case: dict) -> dict:
-    from trunk_drake.model.plant import LEVELS
     from trunk_drake.optim.strength import isometric_strength
 
     start = time.perf_counter()
@@ -119,9 +118,7 @@ def _run_case(case: dict) -> dict:
            "worker": f"{socket.gethostname()}:{os.getpid()}"}
     try:
         model = _model(case["dofs"])
-        q = np.zeros(len(model.coordinates))
-        for level in LEVELS:
-            q[model.coordinates.index(f"{level}_FE")] = np.radians(case["lumbar_flexion_deg"]) / len(LEVELS)
+        q = model.posture(np.radians(case["lumbar_flexion_deg"]))
         result = isometric_strength(
             model, (case["direction"],), q=q, level=tuple(case["level"]), shoulder=case["shoulder"], sweep=case["sweep"],
             step=case["step"], p=case["p"], min_activation=case["min_activation"],

@@ -70,6 +70,12 @@ class TrunkModel:
         rows = np.eye(len(names))[[names.index(n) for n in self.levels]]
         return rows if self.coupling is None else rows @ self.coupling
 
+    def posture(self, lumbar_flexion: float) -> np.ndarray:
+        """q with the given total lumbar flexion (rad, the sum of the level angles): shared equally by
+        independent levels, along the rhythm when coupled (the least-norm q); other coordinates 0."""
+        s = self.level_matrix.sum(axis=0)
+        return s * (float(lumbar_flexion) / (s @ s))
+
     def variant(self, **changes) -> "TrunkModel":
         """The same model (same spec) rebuilt with other options of `load_model`."""
         options = {"dofs": self.dofs, "pelvis_free": self.pelvis_free, "pelvis_mass": self.pelvis_mass}
