@@ -31,6 +31,7 @@ from pydrake.autodiffutils import AutoDiffXd, ExtractGradient, ExtractValue
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.solvers import ClarabelSolver, IpoptSolver, MathematicalProgram, SolverOptions
 
+from trunk_drake.model.plant import LEVELS
 from trunk_drake.muscle import thelen
 from trunk_drake.systems.bushing import DEFAULT_DAMPING, DEFAULT_STIFFNESS
 from trunk_drake.systems.muscles import muscle_parameters
@@ -480,3 +481,46 @@ def coactivation(model, min_activation: float = 0.020, q=None, reserves: float =
 def with_required(balance: MomentBalance, extra) -> MomentBalance:
     """`balance` with `extra` generalized force (same coordinates) added to what must be supplied."""
     return replace(balance, required=balance.required + np.asarray(extra, float))
+
+
+VERTEBRAE = ("L5", "L4", "L3", "L2", "L1")  # the body above each level of LEVELS (L1 carries the upper body)
+
+
+def vertebra_balances(balance: MomentBalance, min_activation: float = 0.0, max_activation: float = 1.0,
+                      per_newton=None, top: int = 4) -> list[dict]:
+    """Each lumbar vertebra's own moment balance in a model with independent flexion levels.
+
+    The body above level k sits between level k and level k+1, so its equilibrium is the
+    difference of the two level balances: each muscle contributes the difference of its moment
+    arms at the two levels (one inserting on the vertebra crosses only level k; one passing it
+    contributes through the change of its lever arm from one joint centre to the other), and
+    together they must supply ``need`` (Nm, flexion of the vertebra relative to its neighbours;
+    beyond passive force and activation floor) plus ``per_newton`` times the load. ``capacity`` is the largest flexing and extending moment those
+    muscles give within the activation bounds; ``load_limit`` the load at which this vertebra
+    alone runs out (N; None without a load or if it never does).
+    """
+    names = [f"{lvl}_FE" for lvl in LEVELS]
+    index = [balance.coordinates.index(n) for n in names if n in balance.coordinates]
+    if len(index) != len(LEVELS):
+        raise ValueError(f"vertebra balances need the independent flexion levels {names}; the balance has {balance.coordinates}")
+    A = balance.activation_matrix
+    floor = balance.target - A @ np.full(A.shape[1], min_activation)
+    out = []
+    for k, vertebra in enumerate(VERTEBRAE):
+        row = np.zeros(len(balance.coordinates))
+        row[index[k]] = 1.0
+        if k + 1 < len(index):
+            row[index[k + 1]] = -1.0
+        moment = row @ A * (max_activation - min_activation)  # per muscle, from its floor to full activation
+        need = float(row @ floor)
+        capacity = (float(moment[moment < 0].sum()), float(moment[moment > 0].sum()))
+        entry = {"vertebra": vertebra, "between": [names[k], names[k + 1] if k + 1 < len(names) else None], "need_Nm": need,
+                 "capacity_Nm": capacity, "flexing": [(balance.muscles[i], float(moment[i])) for i in np.argsort(-moment)[:top] if moment[i] > 0],
+                 "extending": [(balance.muscles[i], float(moment[i])) for i in np.argsort(moment)[:top] if moment[i] < 0]}
+        if per_newton is not None:
+            step = float(-(row @ np.asarray(per_newton, float)))
+            entry["need_per_newton_m"] = step
+            room = capacity[1] - need if step > 0 else need - capacity[0]
+            entry["load_limit_N"] = float(room / abs(step)) if step and room > 0 else (0.0 if step else None)
+        out.append(entry)
+    return out
