@@ -181,3 +181,39 @@ def test_rhythm_conserves_energy():
     after = model.plant.CalcKineticEnergy(context) + model.plant.CalcPotentialEnergy(context)
     assert abs(model.plant.GetPositions(context)[1] - np.radians(10.0)) > np.radians(1.0)
     assert abs(after - energy) < 1e-6 * max(1.0, abs(energy)), (energy, after)
+
+
+def test_coactivation_equilibrium_is_an_equilibrium_of_the_rhythm_diagram():
+    """Static optimisation and the simulated diagram see the same coupled system: muscles (moment
+    arms about lumbar_FE), bushings (through the level shares) and gravity balance at rest."""
+    import warnings
+
+    from trunk_drake.diagram import TrunkOptions, build_trunk_diagram
+
+    model = td.load_model("rhythm")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the rhythm needs no reserve actuators
+        excitation, so = td.coactivation(model, 0.02, return_result=True)
+    assert so.reserves_used == {} and abs(so.residuals).max() < 1e-6
+    td_ = build_trunk_diagram(model, TrunkOptions(feedforward=excitation))
+    assert td_.model.coordinates == ["lumbar_FE"] and list(td_.fe_indices) == [0]
+    context = td_.diagram.CreateDefaultContext()
+    td_.muscles.GetMyMutableContextFromRoot(context).SetContinuousState(excitation)
+    qdot, vdot = td_.plant.EvalTimeDerivatives(td_.plant.GetMyContextFromRoot(context)).CopyToVector()  # at rest: q = v = 0
+    assert qdot == 0.0 and abs(vdot) < 1e-5, vdot  # lumbar_FE acceleration, rad/s^2
+    unbalanced = build_trunk_diagram(model, TrunkOptions(feedforward=0.5 * excitation))
+    context = unbalanced.diagram.CreateDefaultContext()
+    unbalanced.muscles.GetMyMutableContextFromRoot(context).SetContinuousState(0.5 * excitation)
+    assert abs(unbalanced.plant.EvalTimeDerivatives(unbalanced.plant.GetMyContextFromRoot(context)).CopyToVector()[1]) > 1e-2
+
+
+def test_rhythm_simulation_reports_levels_and_lumbar_rotation():
+    model = td.load_model("rhythm")
+    result = td.simulate(model, duration=1.0, bandwidth=1.0, feedforward=td.coactivation(model, 0.02))
+    assert result.coordinates == ["pelvis_tx", "lumbar_FE"]
+    np.testing.assert_allclose(result.lumbar_rotation, result.coordinate("lumbar_FE"), atol=1e-12)
+    levels = np.column_stack([result.coordinate(f"{lvl}_FE") for lvl in ("L5_S1", "L4_L5", "L3_L4", "L2_L3", "L1_L2")])
+    np.testing.assert_allclose(levels.sum(axis=1), result.lumbar_rotation, atol=1e-12)
+    np.testing.assert_allclose(levels[:, 0], 0.125 * result.lumbar_rotation, atol=1e-12)
+    assert np.abs(result.coordinate("pelvis_tx") - result.platform[:, 0]).max() < 1e-12  # prescribed pelvis
+    assert np.degrees(np.abs(result.lumbar_rotation).max()) > 0.01, "the platform must move the trunk"
