@@ -217,3 +217,23 @@ def test_rhythm_simulation_reports_levels_and_lumbar_rotation():
     np.testing.assert_allclose(levels[:, 0], 0.125 * result.lumbar_rotation, atol=1e-12)
     assert np.abs(result.coordinate("pelvis_tx") - result.platform[:, 0]).max() < 1e-12  # prescribed pelvis
     assert np.degrees(np.abs(result.lumbar_rotation).max()) > 0.01, "the platform must move the trunk"
+
+
+def test_fit_objective_on_the_rhythm_is_the_noise_floor_at_the_truth():
+    """Fitting accepts the rhythm: data made by the rhythm model with known gains, plus noise, give
+    a chi-square of one per sample at those gains (lumbar rotation and the five level angles)."""
+    from trunk_drake.gap.benchmark import nominal_options
+    from trunk_drake.gap.synthetic import synthetic_trials
+    from trunk_drake.optim.fit import OUTPUT_NAMES, GainLayout, Objective, targets_from_trials
+
+    model = td.load_model("rhythm")
+    truth = nominal_options()
+    noise = np.radians(0.05)
+    trials = synthetic_trials(model, truth, [("rhythm", 1.0, 4)], noise, seed=5, period=10.0)
+    targets = targets_from_trials(trials, OUTPUT_NAMES, noise, period=10.0)
+    layout = GainLayout(tuple(model.groups))
+    r, _ = Objective(model, targets, layout, truth)(layout.vector({"kp": truth.kp, "kv": truth.kv}))
+    assert abs(r @ r / r.size - 1.0) < 0.1, r @ r / r.size
+    wrong = layout.vector({"kp": truth.kp, "kv": {g: 3 * v for g, v in truth.kv.items()}})
+    r_wrong, _ = Objective(model, targets, layout, truth)(wrong)
+    assert r_wrong @ r_wrong > 1.2 * (r @ r), ("the gains must matter", r_wrong @ r_wrong / r.size)  # chi2 SD: 1.5 % of r.size
