@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import trunk_drake as td
+from test_model_geometry import compile_mujoco
 from trunk_drake.model.myotorso import RHYTHM_DRIVER, lumbar_c210_l5_s1_slope, myotorso_rhythm, read_myotorso
 
 N_POSES = 240
@@ -20,13 +21,7 @@ def mujoco_with_couplings(l5_s1_slope):
     a rhythm in which L5/S1 turns `l5_s1_slope` of the driver (Lumbar_C_210: 0.125), every
     coupler on the driver is divided by that slope, so the constraints hold the same rhythm.
     """
-    from myo_sim.build.compose import build_spec
-
-    spec = build_spec("myotorso")
-    joint = spec.body("sacrum").add_joint()
-    joint.name, joint.type, joint.axis = "pelvis_tx", mujoco.mjtJoint.mjJNT_SLIDE, [1.0, 0.0, 0.0]
-    joint.range = [-1.0, 1.0]
-    m = spec.compile()
+    m = compile_mujoco(pelvis_slide=True)
     m.opt.jacobian = mujoco.mjtJacobian.mjJAC_DENSE
     driver = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, RHYTHM_DRIVER)
     on_driver = (m.eq_type == mujoco.mjtEq.mjEQ_JOINT) & (m.eq_obj2id == driver)
