@@ -47,6 +47,8 @@ class CoupledPlant(LeafSystem):
         self._n = G.shape[1]
         self._scratch = plant.CreateDefaultContext()
         self._synced = None  # the state last written into the scratch context
+        self._free_motion = None  # (state, M^-1, M^-1 (tau_g - C)) at the last state: implicit integrators
+        #                         perturb the other systems' states many times at one plant state
         self.DeclareContinuousState(self._n, self._n, 0)
         self._applied = self.DeclareVectorInputPort("applied_generalized_force", self._n)
         self._state = self.DeclareVectorOutputPort("state", 2 * self._n, self._copy_state,
@@ -127,11 +129,13 @@ class CoupledPlant(LeafSystem):
         return J @ self.coupling
 
     def DoCalcTimeDerivatives(self, context, derivatives):
-        v = self.GetVelocities(context)
-        tau = self._applied.Eval(context) if self._applied.HasValue(context) else np.zeros(self._n)
-        rhs = self.CalcGravityGeneralizedForces(context) - self.CalcBiasTerm(context) + tau
-        vdot = np.linalg.solve(self.CalcMassMatrix(context), rhs)
-        derivatives.get_mutable_vector().SetFromVector(np.concatenate([v, vdot]))
+        x = self._state_vector(context).CopyToVector()
+        if self._free_motion is None or not np.array_equal(x, self._free_motion[0]):
+            m_inv = np.linalg.inv(self.CalcMassMatrix(context))
+            self._free_motion = (x, m_inv, m_inv @ (self.CalcGravityGeneralizedForces(context) - self.CalcBiasTerm(context)))
+        _, m_inv, free = self._free_motion
+        vdot = free + m_inv @ self._applied.Eval(context) if self._applied.HasValue(context) else free
+        derivatives.get_mutable_vector().SetFromVector(np.concatenate([x[self._n:], vdot]))
 
     # ---- kinematics and energies (full plant at this state) ----------------------------
     def EvalBodyPoseInWorld(self, context, body):
