@@ -103,6 +103,7 @@ class SimulationResult:
         kinematics = {"lumbar_rotation": self.lumbar_rotation, "platform_x": self.platform[:, 0],
                       "platform_v": self.platform[:, 1], "platform_a": self.platform[:, 2]}
         kinematics.update({c: self.q[:, i] for i, c in enumerate(self.coordinates)})
+        kinematics.update({name: angle for name, angle in self.levels.items() if name not in self.coordinates})  # coupled levels
         paths = {
             "states": out / "states.sto",
             "muscle_forces": out / "muscle_forces.sto",

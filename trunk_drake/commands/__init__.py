@@ -31,3 +31,13 @@ def group(sub, name: str, help: str):
 def print_json(data) -> None:
     """Print `data` as indented JSON (numpy arrays and scalars allowed)."""
     print(json.dumps(data, indent=2, default=json_default))
+
+
+_CONFIGURATIONS = {"sagittal": "five independent lumbar flexion levels", "spine3d": "independent levels in 3-D, pelvis welded",
+                   "rhythm": "one lumbar flexion coordinate moving the levels with Lumbar_C_210's rhythm"}
+
+
+def dofs_argument(parser, choices=("sagittal", "rhythm"), default: str = "sagittal") -> None:
+    """`--dofs`: the model configuration a command runs on (trunk_drake.model.plant)."""
+    parser.add_argument("--dofs", choices=choices, default=default,
+                        help="; ".join(f"{c}: {_CONFIGURATIONS[c]}" for c in choices) + f" (default {default})")

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+from trunk_drake.commands import dofs_argument
+
 
 def add_command(sub) -> None:
     p = sub.add_parser("diagnose", help="diagnose the sim-to-real gap: where, which unmodelled effect, how far it shrinks",
@@ -13,6 +15,7 @@ def add_command(sub) -> None:
     p.add_argument("--out", required=True, help="output folder (report.md, diagnosis.json, figures)")
     p.add_argument("--conditions", help="TOML with a [conditions] table (default: conditions.toml beside the data)")
     p.add_argument("--gains", help="TOML with [kp] and [kv] per group: the model's reflex gains (e.g. a fit's gains.toml)")
+    dofs_argument(p)
     p.add_argument("--noise-deg", type=float, help="angle measurement noise (default: conditions, else estimated)")
     p.add_argument("--candidates", nargs="*", help="candidate effects (default: the whole catalogue)")
     p.add_argument("--threshold", type=float, default=10.0, help="held-out dBIC needed to claim an effect")
@@ -38,7 +41,7 @@ def run(args) -> int:
     if args.gains:
         options.update(load_reflex_gains(args.gains))
     noise = np.radians(args.noise_deg) if args.noise_deg is not None else experiment.noise_rad
-    diagnosis = diagnose_gap(load_model("sagittal"), experiment.trials, TrunkOptions(**options), noise=noise,
+    diagnosis = diagnose_gap(load_model(args.dofs), experiment.trials, TrunkOptions(**options), noise=noise,
                              outputs=available_outputs(experiment.trials),
                              candidates=args.candidates, threshold=args.threshold, refine=args.refine,
                              period=experiment.period, fade=experiment.fade, workers=args.workers, progress=not args.json)

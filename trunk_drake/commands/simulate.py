@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from trunk_drake.commands import print_json
+from trunk_drake.commands import dofs_argument, print_json
 from trunk_drake.simulation import DEFAULT_ACCURACY, DEFAULT_GAINS
 
 
@@ -18,6 +18,7 @@ def add_command(sub) -> None:
                    help=f"TOML/JSON with [kp] and [kv] per group (FILE#set picks a set); default: models/{DEFAULT_GAINS}")
     p.add_argument("--no-reflex", action="store_true", help="switch the stretch reflexes off")
     p.add_argument("--tendon", choices=["rigid", "compliant"], default="rigid")
+    dofs_argument(p)
     p.add_argument("--coactivation", type=float, default=0.02,
                    help="minimum activation of the feed-forward co-activation (default 0.02, as the thesis)")
     p.add_argument("--stiffness", type=float, default=125.0, help="bushing stiffness, Nm/rad (thesis final: 125)")
@@ -37,7 +38,7 @@ def run(args) -> int:
     from trunk_drake.optim.static import coactivation
     from trunk_drake.simulation import load_reflex_gains, simulate
 
-    model = load_model("sagittal")
+    model = load_model(args.dofs)
     gains = {"kp": 0.0, "kv": 0.0} if args.no_reflex else load_reflex_gains(args.reflex_gains or models_dir() / DEFAULT_GAINS)
     result = simulate(
         model, duration=args.duration, bandwidth=args.bandwidth, seed=args.seed, lowpass_hz=args.lowpass_hz, tendon=args.tendon,

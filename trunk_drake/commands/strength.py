@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from trunk_drake.commands import print_json
+from trunk_drake.commands import dofs_argument, print_json
 from trunk_drake.optim.strength import DIRECTIONS, THESIS_STEP
 
 
 def add_command(sub) -> None:
     p = sub.add_parser("strength", help="maximal isometric trunk strength (pelvis locked) with the in vivo comparison")
-    p.add_argument("--dofs", choices=["spine3d", "sagittal", "rhythm"], default="spine3d",
-                   help="independent levels in 3-D (default) or in the sagittal plane, or the lumbar rhythm (one coupled coordinate)")
+    dofs_argument(p, ("spine3d", "sagittal", "rhythm"), "spine3d")
     p.add_argument("--direction", choices=[*DIRECTIONS, "all"], default="all", help="all: every direction the configuration supports")
     p.add_argument("--tolerance-deg", type=float, default=0.0,
                    help="each independent level may deflect up to this angle on its bushing instead of balancing exactly")
