@@ -5,7 +5,7 @@ Cartesian product makes the cases) and optional ``[[cases]]`` (explicit extra ca
 onto the defaults). Case parameters (CASE_DEFAULTS): direction, strength_scale,
 min_activation, p, include_passive, level (thoracic landmarks carrying the sagittal load),
 shoulder ("model" | "acromion"), lumbar_flexion_deg (total lumbar flexion, spread equally
-over the five levels), sweep, step, dofs.
+over the five levels, or along the rhythm), sweep, step, dofs ("spine3d", "sagittal", "rhythm").
 
 Runs on local processes (concurrent.futures, one model built per worker by the initializer)
 or on an existing Dask distributed cluster (``cluster="tcp://host:8786"``; each worker
