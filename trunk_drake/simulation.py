@@ -204,16 +204,11 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
 
 def _set_initial_muscle_state(td: TrunkDiagram, root_context) -> None:
     """Start at rest: activations equal to the feed-forward excitation (no stretch at q = 0),
-    compliant fibers in static force equilibrium with their tendons."""
-    from trunk_drake.muscle import thelen
-
-    muscles, n = td.muscles, td.muscles.n
-    x0 = muscles.default_state
-    x0[:n] = np.clip(td.feedforward, td.options.constants.minimum_activation, 1.0)
-    if muscles.tendon == "compliant":
-        path = td.paths.GetOutputPort("path_state").Eval(td.paths.GetMyContextFromRoot(root_context))
-        x0[n:] = thelen.equilibrium_fiber_length(x0[:n], path.lengths, muscles.params, muscles.constants).fiber_length
-    muscles.GetMyMutableContextFromRoot(root_context).SetContinuousState(x0)
+    compliant fibers in static force equilibrium with their tendons (MuscleSystem.steady_state)."""
+    muscles = td.muscles
+    path = td.paths.GetOutputPort("path_state").Eval(td.paths.GetMyContextFromRoot(root_context))
+    activation = np.clip(td.feedforward, td.options.constants.minimum_activation, 1.0)
+    muscles.GetMyMutableContextFromRoot(root_context).SetContinuousState(muscles.steady_state(activation, path))
 
 
 def _perturbation(perturbation, bandwidth, seed, lowpass_hz=None):
@@ -307,7 +302,9 @@ def load_reflex_gains(path) -> dict[str, dict[str, float]]:
         data = data[name]
     missing = [k for k in ("kp", "kv") if k not in data]
     if missing:
-        raise ValueError(f"{p}{'#' + name if name else ''} lacks the {missing} table(s); expected [kp] and [kv] per muscle group")
+        sets = sorted(k for k, v in data.items() if isinstance(v, dict) and {"kp", "kv"} <= set(v))
+        hint = f"; it holds the sets {sets}: pick one with {p}#NAME" if sets and not name else ""
+        raise ValueError(f"{p}{'#' + name if name else ''} lacks the {missing} table(s); expected [kp] and [kv] per muscle group{hint}")
     return {"kp": dict(data["kp"]), "kv": dict(data["kv"])}
 
 

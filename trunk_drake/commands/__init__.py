@@ -9,6 +9,8 @@ from __future__ import annotations
 import importlib
 import json
 import pkgutil
+import sys
+import warnings
 
 from trunk_drake.metadata import json_default
 
@@ -31,6 +33,39 @@ def group(sub, name: str, help: str):
 def print_json(data) -> None:
     """Print `data` as indented JSON (numpy arrays and scalars allowed)."""
     print(json.dumps(data, indent=2, default=json_default))
+
+
+def add_passenger_arguments(p) -> None:
+    """Options that configure the passenger (reflexes, co-activation, bushings, short-range stiffness),
+    shared by the commands that build a trunk diagram; read them back with `passenger_options`."""
+    from trunk_drake.simulation import DEFAULT_GAINS
+
+    p.add_argument("--reflex-gains", default=None,
+                   help=f"TOML/JSON with [kp] and [kv] per group (FILE#set picks a set); default: models/{DEFAULT_GAINS}")
+    p.add_argument("--no-reflex", action="store_true", help="switch the stretch reflexes off")
+    p.add_argument("--coactivation", type=float, default=0.02,
+                   help="minimum activation of the feed-forward co-activation (default 0.02, as the thesis)")
+    p.add_argument("--stiffness", type=float, default=125.0, help="bushing stiffness, Nm/rad (thesis final: 125)")
+    p.add_argument("--damping", type=float, default=7.5, help="bushing damping, Nms/rad")
+    p.add_argument("--srs", action="store_true",
+                   help="short-range stiffness of active muscle (constants: models/reference_values.toml [muscle.srs])")
+
+
+def passenger_options(args, model) -> dict:
+    """TrunkOptions fields (and simulate() keywords) from the arguments of `add_passenger_arguments`."""
+    from trunk_drake.data import models_dir
+    from trunk_drake.muscle.short_range import ShortRangeStiffness
+    from trunk_drake.optim.static import coactivation
+    from trunk_drake.simulation import DEFAULT_GAINS, load_reflex_gains
+
+    gains = {"kp": 0.0, "kv": 0.0} if args.no_reflex else load_reflex_gains(args.reflex_gains or models_dir() / DEFAULT_GAINS)
+    with warnings.catch_warnings(record=True) as caught:  # one plain line each, no source line
+        warnings.simplefilter("always")
+        feedforward = coactivation(model, args.coactivation)
+    for warning in caught:
+        print(f"warning: {warning.message}", file=sys.stderr)
+    return {"feedforward": feedforward, "stiffness": args.stiffness, "damping": args.damping,
+            "srs": ShortRangeStiffness.from_reference() if args.srs else None, **gains}
 
 
 _CONFIGURATIONS = {"sagittal": "five independent lumbar flexion levels", "spine3d": "independent levels in 3-D, pelvis welded",

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from trunk_drake.commands import dofs_argument, print_json
-from trunk_drake.simulation import DEFAULT_ACCURACY, DEFAULT_GAINS
+from trunk_drake.commands import add_passenger_arguments, dofs_argument, passenger_options, print_json
+from trunk_drake.simulation import DEFAULT_ACCURACY
 
 
 def add_command(sub) -> None:
@@ -14,15 +14,9 @@ def add_command(sub) -> None:
     p.add_argument("--bandwidth", type=float, default=1.0, help="highest perturbation frequency, Hz (1, 3 or 10)")
     p.add_argument("--seed", type=int, default=0, help="multisine phase seed")
     p.add_argument("--lowpass-hz", type=float, default=None, help="low-pass the perturbation (the thesis used 2 Hz)")
-    p.add_argument("--reflex-gains", default=None,
-                   help=f"TOML/JSON with [kp] and [kv] per group (FILE#set picks a set); default: models/{DEFAULT_GAINS}")
-    p.add_argument("--no-reflex", action="store_true", help="switch the stretch reflexes off")
+    add_passenger_arguments(p)
     p.add_argument("--tendon", choices=["rigid", "compliant"], default="rigid")
     dofs_argument(p)
-    p.add_argument("--coactivation", type=float, default=0.02,
-                   help="minimum activation of the feed-forward co-activation (default 0.02, as the thesis)")
-    p.add_argument("--stiffness", type=float, default=125.0, help="bushing stiffness, Nm/rad (thesis final: 125)")
-    p.add_argument("--damping", type=float, default=7.5, help="bushing damping, Nms/rad")
     p.add_argument("--pelvis", choices=["prescribed", "force"], default="prescribed",
                    help="exact prescribed pelvis motion, or the thesis' 10,000 kg force-driven pelvis")
     p.add_argument("--accuracy", type=float, default=DEFAULT_ACCURACY, help="integrator target accuracy")
@@ -33,17 +27,13 @@ def add_command(sub) -> None:
 
 
 def run(args) -> int:
-    from trunk_drake.data import models_dir
     from trunk_drake.model.trunk_model import load_model
-    from trunk_drake.optim.static import coactivation
-    from trunk_drake.simulation import load_reflex_gains, simulate
+    from trunk_drake.simulation import simulate
 
     model = load_model(args.dofs)
-    gains = {"kp": 0.0, "kv": 0.0} if args.no_reflex else load_reflex_gains(args.reflex_gains or models_dir() / DEFAULT_GAINS)
     result = simulate(
         model, duration=args.duration, bandwidth=args.bandwidth, seed=args.seed, lowpass_hz=args.lowpass_hz, tendon=args.tendon,
-        feedforward=coactivation(model, args.coactivation), stiffness=args.stiffness, damping=args.damping,
-        pelvis=args.pelvis, accuracy=args.accuracy, progress=args.progress, **gains,
+        pelvis=args.pelvis, accuracy=args.accuracy, progress=args.progress, **passenger_options(args, model),
     )
     files = result.write(args.out)
     summary = {**result.summary(), "files": {k: str(v) for k, v in files.items()}}

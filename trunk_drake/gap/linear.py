@@ -138,14 +138,9 @@ def linearize(model, options: TrunkOptions, q0, a0, u0, seat: bool = False, h: f
     context = td.diagram.CreateDefaultContext()
 
     def f(x):
-        context.SetContinuousState(x)
-        return td.diagram.EvalTimeDerivatives(context).CopyToVector()
+        return time_derivatives(td, context, x)
 
-    jac = np.empty((x0.size, x0.size))
-    for j in range(x0.size):
-        dx = np.zeros_like(x0)
-        dx[j] = h
-        jac[:, j] = (f(x0 + dx) - f(x0 - dx)) / (2 * h)
+    jac = state_jacobian(td, x0, h, context)
     vrows = slice(nq, 2 * nq)
     arows = slice(2 * nq, 2 * nq + n_m)
     b_acc = None
@@ -179,6 +174,26 @@ def linearize(model, options: TrunkOptions, q0, a0, u0, seat: bool = False, h: f
         headroom=np.where(u0 <= options.constants.minimum_activation * (1 + 1e-9), 0.5, 1.0),
         extensors=_group_mask(base, EXTENSOR_GROUPS), flexors=_group_mask(base, FLEXOR_GROUPS),
     )
+
+
+def state_jacobian(td, x0, h: float = 1e-6, context=None) -> np.ndarray:
+    """Central-difference Jacobian of the built diagram's time derivatives at continuous state `x0`
+    (a kink, e.g. a one-sided reflex exactly at its threshold, gives the mean of its two slopes)."""
+    context = context or td.diagram.CreateDefaultContext()
+    x0 = np.asarray(x0, float)
+    jac = np.empty((x0.size, x0.size))
+    for j in range(x0.size):
+        dx = np.zeros_like(x0)
+        dx[j] = h
+        jac[:, j] = (time_derivatives(td, context, x0 + dx) - time_derivatives(td, context, x0 - dx)) / (2 * h)
+    context.SetContinuousState(x0)
+    return jac
+
+
+def time_derivatives(td, context, x) -> np.ndarray:
+    """The diagram's continuous-state time derivatives at state `x` (set into `context`)."""
+    context.SetContinuousState(x)
+    return td.diagram.EvalTimeDerivatives(context).CopyToVector()
 
 
 def _sacrum_mass(model) -> float:
