@@ -2,7 +2,9 @@
 
 MyoTorso was converted from Christophy et al.'s Lumbar_C_210.osim. This module loads that
 file with OpenSim, reads its musculotendon lengths at the neutral posture and its Thelen
-parameters, and compares them with ours. The .osim file itself is never copied.
+parameters, and compares them with ours; for strength, it reads OpenSim's statics at the
+upright posture (moment arms, muscle forces, gravity and load) with the couplers enforced (the
+lumbar rhythm) or disabled. The .osim file itself is never copied.
 """
 
 from __future__ import annotations
@@ -116,7 +118,6 @@ def compare_hill_parameters(model, osim_path: str, tolerance: float = 0.01) -> H
     )
 
 
-
 RHYTHM_COORDINATES = ("flex_extension",)  # Lumbar_C_210's independent flexion coordinate (couplers enforced)
 LEVEL_COORDINATES = ("flex_extension", "L4_L5_FE", "L3_L4_FE", "L2_L3_FE", "L1_L2_FE")  # couplers disabled
 
@@ -128,7 +129,8 @@ class OsimStatics:
     Coordinates are the .osim's, flexion positive (minus OpenSim's angle, which is positive in
     extension): with couplers enforced ``flex_extension`` is the lumbar rhythm (Lumbar_C_210's
     level slopes sum to 1: it is the sum of the level angles); with couplers disabled the five
-    flexion coordinates are independent (``flex_extension`` then turns L5/S1 by 0.125 of itself).
+    flexion coordinates are independent (``flex_extension`` then turns L5/S1 by 0.125 of itself) and
+    every other coordinate (the Abdomen's, the wrap body's) stays at zero, as if locked.
     `moment_arms` (n_muscles, n_coordinates) are OpenSim's own ``Muscle.computeMomentArm``;
     `active` is OpenSim's ``calcInextensibleTendonActiveFiberForce`` at full activation (what its
     Static Optimization Tool uses); `passive` is the rigid-tendon passive fiber force along the
