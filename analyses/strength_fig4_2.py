@@ -4,51 +4,21 @@ strength with the pelvis locked, against in vivo values.
 Solved directly as a linear program and by the thesis' 10 N static-optimisation sweep
 (trunk_drake.optim.strength), on the 3-D spine (pelvis welded). Then every variant of the in vivo
 comparison (lumbar rhythm, tolerated deflection, exact balance, the thesis' activation floor),
-with and without passive muscle force, against Kocjan & Sarabon's sitting subjects and, where
-../shared and OpenSim 4.6 are present, the original Lumbar_C_210 in OpenSim (couplers enforced:
-the rhythm; couplers disabled: independent levels) with the same feasibility definition."""
+with and without passive muscle force, against Kocjan & Sarabon's sitting subjects. The same
+definition on the original Lumbar_C_210 in OpenSim is tests/test_strength_opensim.py."""
 
 from collections import Counter
 
 import numpy as np
 
-from trunk_drake import reproduce as rp
+from trunk_drake import thesis
 from trunk_drake.optim.strength import DIRECTIONS, isometric_strength, strength_report, strength_variants
 
 SAGITTAL = ("extension", "flexion")
 IN_VIVO = "kocjan2014_sitting_mixed"  # the seated subjects of Kocjan & Sarabon 2014 (models/reference_values.toml)
 
 
-def _opensim(spine):
-    """{label: {direction: (with passive, without passive)}} from OpenSim on Lumbar_C_210, or {} without ../shared.
-
-    None marks a load no activation can balance (the unloaded posture already fails)."""
-    from trunk_drake.model.lumbar_c210 import oracle_path, osim_statics
-    from trunk_drake.optim.static import StaticInfeasibleError
-    from trunk_drake.optim.strength import max_load
-
-    path = oracle_path()
-    if path is None:
-        return {}
-    points = [spine.spec.landmark(n).pos for n in ("T6", "T7")]
-    out = {}
-    for label, couplers in (("OpenSim Lumbar_C_210, couplers enforced (rhythm)", True),
-                            ("OpenSim Lumbar_C_210, couplers disabled (independent levels, exact)", False)):
-        statics = osim_statics(path, points, couplers=couplers)
-        row = {}
-        for direction in SAGITTAL:
-            values = []
-            for passive in (True, False):
-                try:
-                    values.append(max_load(statics.balance(passive), statics.load_per_newton[direction], 0.0)[0])
-                except StaticInfeasibleError:
-                    values.append(None)
-            row[direction] = tuple(values)
-        out[label] = row
-    return out
-
-
-def _vertebra_note(spine, rows) -> str:
+def _vertebra_note(spine) -> str:
     """Why independent levels balanced exactly are so weak in flexion, with this model's numbers."""
     from trunk_drake.optim.static import StaticOptimizer, vertebra_balances
     from trunk_drake.optim.strength import StrengthProblem, load_case
@@ -56,7 +26,6 @@ def _vertebra_note(spine, rows) -> str:
     problem = StrengthProblem(StaticOptimizer(spine, min_activation=0.0), load_case(spine, "flexion"))
     weakest = min(vertebra_balances(problem.balance, 0.0, 1.0, problem.per_newton), key=lambda v: v["load_limit_N"])
     steps = [v["need_per_newton_m"] for v in vertebra_balances(problem.balance, 0.0, 1.0, problem.per_newton)[:-1]]
-    opensim = next((r["flexion"][1] for k, r in rows.items() if "couplers disabled" in k), None)
     return ("Independent levels balanced exactly: every vertebra must be in equilibrium on its own. A horizontal load at T6/T7 "
             f"raises the flexion moment the muscles must supply from one level to the next by the load times {min(steps):.3f}-"
             f"{max(steps):.3f} m (the vertebrae's heights). A muscle supplies a vertebra's share only through the difference of its "
@@ -66,23 +35,21 @@ def _vertebra_note(spine, rows) -> str:
             f"The weakest is {weakest['vertebra']}: {', '.join(n for n, _ in weakest['flexing'])} give at most "
             f"{weakest['capacity_Nm'][1]:.2f} Nm, it needs {weakest['need_Nm']:.2f} Nm without load (gravity and passive force) "
             f"+ {weakest['need_per_newton_m']:.4f} m x F: {weakest['load_limit_N']:.0f} N, the whole model's maximum. "
-            "The thesis' activation floor of 0.01 makes the extensors on it push back (the 'activation floor' row). "
-            + (f"OpenSim's Lumbar_C_210 with its couplers disabled is as weak ({opensim:.0f} N without passive force; with it "
-               "the unloaded posture already fails). " if opensim else "")
-            + "The rhythm (one coordinate) or a few degrees of deflection on the bushings let the levels share the load.")
+            "The thesis' activation floor of 0.01 makes the extensors on it push back (the 'activation floor' row). OpenSim's "
+            "Lumbar_C_210 with its couplers disabled is as weak (tests/test_strength_opensim.py). The rhythm (one coordinate) "
+            "or a few degrees of deflection on the bushings let the levels share the load.")
 
 
 def _variant_plot(path, rows, in_vivo):
-    plt = rp.pyplot()
+    plt = thesis.pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.8), sharey=True)
     labels = list(rows)
     for ax, direction in zip(axes, SAGITTAL):
         x = np.arange(len(labels))
-        with_p = [rows[k][direction][0] or 0.0 for k in labels]
-        without_p = [rows[k][direction][1] or 0.0 for k in labels]
-        ax.bar(x - 0.2, with_p, 0.4, color=["C8" if "OpenSim" in k else "C4" for k in labels], label="with passive force")
-        ax.bar(x + 0.2, without_p, 0.4, color=["C8" if "OpenSim" in k else "C4" for k in labels], alpha=0.45,
-               label="without passive force")
+        with_p = [rows[k][direction][0] for k in labels]
+        without_p = [rows[k][direction][1] for k in labels]
+        ax.bar(x - 0.2, with_p, 0.4, color="C4", label="with passive force")
+        ax.bar(x + 0.2, without_p, 0.4, color="C4", alpha=0.45, label="without passive force")
         mean, sd = in_vivo[direction]
         ax.axhspan(mean - sd, mean + sd, color="C1", alpha=0.15)
         ax.axhline(mean, color="C1", lw=2, label=f"in vivo, sitting (Kocjan & Sarabon 2014): {mean:.0f} +- {sd:.0f} N")
@@ -91,9 +58,8 @@ def _variant_plot(path, rows, in_vivo):
         ax.grid(alpha=0.3, axis="y")
     axes[0].set_ylabel("maximal isometric force at T6/T7 (N)")
     axes[1].legend(fontsize=7, loc="upper right")
-    fig.suptitle("Strength variants: trunk-drake on MyoTorso (purple) and OpenSim on Lumbar_C_210 (olive); "
-                 "activations in [0, 1] unless noted", fontsize=9)
-    return rp.save_figure(fig, path)
+    fig.suptitle("Strength variants of trunk-drake on MyoTorso; activations in [0, 1] unless noted", fontsize=9)
+    return thesis.save_figure(fig, path)
 
 THESIS = ("Model predictions lie within the in vivo ranges (Paalanne et al. for sagittal, Thomas et al. for lateral "
           "bending) and exceed Schmid et al.'s; extension strength is excessive, lateral flexion the lowest prediction; "
@@ -103,7 +69,7 @@ THESIS = ("Model predictions lie within the in vivo ranges (Paalanne et al. for 
 
 
 def _plot(path, summaries):
-    plt = rp.pyplot()
+    plt = thesis.pyplot()
     fig, ax = plt.subplots(figsize=(11, 4.8))
     ticks, names = [], []
     pos = 0.0
@@ -131,7 +97,7 @@ def _plot(path, summaries):
     ax.set_ylim(top=ax.get_ylim()[1] * 1.1)
     ax.set_title("Fig. 4.2: trunk-drake (purple; cyan: load at the acromion) vs in vivo comparators (orange, ±1 SD) "
                  "and the thesis' model (olive)", fontsize=10)
-    return rp.save_figure(fig, path)
+    return thesis.save_figure(fig, path)
 
 
 def run(out_dir, model=None, workers=2, inputs=None, sweep=True):
@@ -146,14 +112,11 @@ def run(out_dir, model=None, workers=2, inputs=None, sweep=True):
     variants = strength_variants(spine.spec, SAGITTAL)
     rows = {name: {d: (r.max_force, r.variants["without_passive"]["max_force_N"]) for d, r in res.items()}
             for name, res in variants.items()}
-    rows.update(_opensim(spine))
-    vivo = {d: (rp.reference_value(f"strength.{d}.{IN_VIVO}")["mean"], rp.reference_value(f"strength.{d}.{IN_VIVO}")["sd"])
+    vivo = {d: (thesis.reference_value(f"strength.{d}.{IN_VIVO}")["mean"], thesis.reference_value(f"strength.{d}.{IN_VIVO}")["sd"])
             for d in SAGITTAL}
     variant_figure = _variant_plot(f"{out_dir}/fig4_2_variants.png", rows, vivo)
 
     def cell(value, direction):
-        if value is None:
-            return "infeasible"
         mean, sd = vivo[direction]
         return f"{value:.0f} ({(value - mean) / sd:+.1f} SD)"
 
@@ -187,7 +150,7 @@ def run(out_dir, model=None, workers=2, inputs=None, sweep=True):
             f"{', '.join(sorted({s['limiting_coordinate'] for s in summaries.values()}))}. "
             + "; ".join(f"{d}: {s['variants']['acromion']['max_force_N']:.0f} N with the load at the acromion"
                         for d, s in summaries.items() if "acromion" in s.get("variants", {})) + ".")
-    return rp.section(
+    return thesis.section(
         THESIS, ours,
         comparison=[["extension", "excessive (above in vivo), strongest",
                      f"rhythm {rhythm['extension'][0]:.0f} N, independent levels {forces['extension']:.0f} N; "
@@ -215,7 +178,7 @@ def run(out_dir, model=None, workers=2, inputs=None, sweep=True):
                "MyoTorso lumps thorax, arms and head into one body, and its upper-body centre of mass lies 1.1 cm posterior to "
                "L4/L5 (the thesis' model: 9.1 cm anterior); the thesis raised 54 muscles' maximal forces (appendix A.1), we "
                "keep MyoTorso's.",
-               _vertebra_note(spine, rows),
+               _vertebra_note(spine),
                "Rhythm vs OpenSim (same LP, same load points): the differences above 15 % come from the muscle forces, not "
                "the geometry: Lumbar_C_210.osim gives rect_abd a tendon slack length of 0.0170 m (its ReadMeFirst, Table 3: "
                "0.0810 m; ours follows the published method), which puts its fibers at 1.64 optimal lengths upright, "

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import json
 
-from trunk_drake.commands import dofs_argument
+from trunk_drake.commands import count, dofs_argument, positive
+from trunk_drake.gap.catalogue import CATALOGUE
 
 
 def add_command(sub) -> None:
@@ -16,11 +17,12 @@ def add_command(sub) -> None:
     p.add_argument("--conditions", help="TOML with a [conditions] table (default: conditions.toml beside the data)")
     p.add_argument("--gains", help="TOML with [kp] and [kv] per group: the model's reflex gains (e.g. a fit's gains.toml)")
     dofs_argument(p)
-    p.add_argument("--noise-deg", type=float, help="angle measurement noise (default: conditions, else estimated)")
-    p.add_argument("--candidates", nargs="*", help="candidate effects (default: the whole catalogue)")
+    p.add_argument("--noise-deg", type=positive, help="angle measurement noise (default: conditions, else estimated)")
+    p.add_argument("--candidates", nargs="*", choices=[e.name for e in CATALOGUE], metavar="EFFECT",
+                   help=f"candidate effects (default: the whole catalogue: {', '.join(e.name for e in CATALOGUE)})")
     p.add_argument("--threshold", type=float, default=10.0, help="held-out dBIC needed to claim an effect")
-    p.add_argument("--refine", type=int, default=3, help="candidates refined with nonlinear simulations")
-    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--refine", type=count, default=3, help="candidates refined with nonlinear simulations")
+    p.add_argument("--workers", type=count, default=2)
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.set_defaults(func=run)
 
@@ -37,6 +39,9 @@ def run(args) -> int:
     from trunk_drake.simulation import load_reflex_gains
 
     experiment = load_experiment(args.data, args.conditions)
+    if len(experiment.trials) < 2:
+        raise ValueError(f"diagnose needs at least two trials (the effects are scored on held-out data), got "
+                         f"{len(experiment.trials)}: {experiment.source}")
     options = dict(experiment.options)
     if args.gains:
         options.update(load_reflex_gains(args.gains))

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from trunk_drake.commands import dofs_argument, print_json
+from trunk_drake.commands import count, dofs_argument, positive, print_json
 from trunk_drake.optim.fit import THESIS_START
 
 
@@ -17,9 +17,11 @@ def add_command(sub) -> None:
     p.add_argument("--conditions", help="TOML with a [conditions] table (default: conditions.toml beside the data)")
     p.add_argument("--outputs", choices=["total", "levels", "all"], default="all",
                    help="fit the total lumbar rotation, the five level angles, or all (default; those present in the data)")
-    p.add_argument("--starts", type=int, default=1, help="number of starting points (multi-start)")
-    p.add_argument("--workers", type=int, default=2, help="parallel simulation processes")
-    p.add_argument("--max-iterations", type=int, default=20)
+    p.add_argument("--t-max", type=positive, default=None, metavar="SECONDS",
+                   help="fit only the first SECONDS of each trial (a quick look; the FRF needs whole periods)")
+    p.add_argument("--starts", type=count, default=1, help="number of starting points (multi-start)")
+    p.add_argument("--workers", type=count, default=2, help="parallel simulation processes")
+    p.add_argument("--max-iterations", type=count, default=20)
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.set_defaults(func=run)
 
@@ -47,7 +49,7 @@ def run(args) -> int:
         names = tuple(n for n in names if n in present) or names
         noise = experiment.noise_rad if experiment.noise_rad is not None else np.radians(0.1)
         targets = targets_from_trials(experiment.trials, names, noise, period=experiment.period,
-                                      steady_start=experiment.fade)
+                                      steady_start=experiment.fade, t_max=args.t_max)
         opts = dict(experiment.options)
         if "feedforward" not in opts:
             opts["feedforward"] = coactivation(model, experiment.coactivation_min_activation or 0.02)

@@ -23,6 +23,7 @@ from trunk_drake.gap.catalogue import effect
 from trunk_drake.gap.diagnose import diagnose_gap
 from trunk_drake.gap.report import write_diagnosis
 from trunk_drake.metadata import json_default
+from trunk_drake.parallel import WorkerPool
 from trunk_drake.gap.synthetic import add_noise, clean_trials, signature_chi2
 
 DEFAULT_NOISE_DEG = 0.1  # motion-capture angle noise (modelling choice: ~0.2 mm marker noise over a few cm)
@@ -79,7 +80,8 @@ def truth_options(nominal: TrunkOptions, case: Case) -> TrunkOptions:
     return effect(case.effect).apply_options(truth, case.values) if case.effect else truth
 
 
-def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, out_dir: Path, workers: int) -> dict:
+def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers: int):
+    """Simulate the case's truth, diagnose it blind; returns (result row, diagnosis)."""
     designs = [("1hz_a", 1.0, case.seed), ("1hz_b", 1.0, case.seed + 1000), ("3hz", 3.0, case.seed + 2000)]
     start = time.perf_counter()
     truth = truth_options(nominal, case)
@@ -87,15 +89,25 @@ def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, out_dir
     observability = _observability(model, case, nominal, designs, clean, noise_rad) if case.effect else {}
     diagnosis = diagnose_gap(model, add_noise(clean, noise_rad, seed=case.seed), nominal, noise=noise_rad,
                              threshold=THRESHOLD, workers=workers)
-    write_diagnosis(diagnosis, out_dir / "cases" / case.name)
     top = diagnosis.ranking[0]["effect"] if diagnosis.ranking else None
-    return {"case": case.name, "truth": case.effect, "truth_values": case.values, "selected": diagnosis.selected,
-            "ranked_first": top, "verdict": diagnosis.verdict,
-            "ranking": [{k: r.get(k) for k in ("effect", "delta_bic", "linear_delta_bic", "values")} for r in diagnosis.ranking],
-            "gap": diagnosis.shrink.get("gap"), "reduction": diagnosis.shrink.get("reduction"),
-            "reduction_above_noise": diagnosis.shrink.get("reduction_above_noise"),
-            "noise_floor_gap": diagnosis.shrink.get("noise_floor_gap"), **observability,
-            "wall_time_s": time.perf_counter() - start}
+    row = {"case": case.name, "truth": case.effect, "truth_values": case.values, "selected": diagnosis.selected,
+           "ranked_first": top, "verdict": diagnosis.verdict,
+           "ranking": [{k: r.get(k) for k in ("effect", "delta_bic", "linear_delta_bic", "values")} for r in diagnosis.ranking],
+           "gap": diagnosis.shrink.get("gap"), "reduction": diagnosis.shrink.get("reduction"),
+           "reduction_above_noise": diagnosis.shrink.get("reduction_above_noise"),
+           "noise_floor_gap": diagnosis.shrink.get("noise_floor_gap"), **observability,
+           "wall_time_s": time.perf_counter() - start}
+    return row, diagnosis
+
+
+def _case_job(model, job):
+    """Worker job: one case, or its error row (a failing case is recorded and the benchmark goes on)."""
+    case, nominal, noise_rad, workers = job
+    try:
+        return run_case(model, case, nominal, noise_rad, workers)
+    except Exception as err:  # noqa: BLE001
+        return {"case": case.name, "truth": case.effect, "error": f"{type(err).__name__}: {err}",
+                "traceback": traceback.format_exc(limit=3)}, None
 
 
 def _observability(model, case: Case, nominal: TrunkOptions, designs, clean, noise_rad: float) -> dict:
@@ -110,8 +122,11 @@ def _observability(model, case: Case, nominal: TrunkOptions, designs, clean, noi
     return {"signature_chi2": chi2, "observable": bool(chi2 / 2 > needed)}
 
 
-def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE_DEG, workers: int = 2, progress=print) -> dict:
-    """Run (or resume) every case; returns the summary (also written to summary.json/.md)."""
+def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE_DEG, workers: int = 2, progress=print,
+                  cluster: str | None = None, only=None) -> dict:
+    """Run (or resume) every case (or the cases named in `only`); returns the summary (also
+    written to summary.json/.md). Locally the cases run one after another, each diagnosis on
+    `workers` processes; on the Dask cluster at `cluster` the cases run in parallel, one per worker."""
     from trunk_drake.model.trunk_model import load_model
 
     out = Path(out_dir)
@@ -122,24 +137,30 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
         for line in results_path.read_text().splitlines():
             row = json.loads(line)
             done[row["case"]] = row
+    all_cases = cases(quick)
+    if only:
+        unknown = set(only) - {c.name for c in cases(False)}
+        if unknown:
+            raise ValueError(f"unknown gap-benchmark case(s) {sorted(unknown)}; cases: {[c.name for c in cases(False)]}")
+        all_cases = [c for c in cases(False) if c.name in only]
     model = load_model("sagittal")
     nominal = nominal_options()
     noise = float(np.radians(noise_deg))
-    all_cases = cases(quick)
-    for k, case in enumerate(all_cases, 1):
-        if case.name in done and "error" not in done[case.name]:
-            continue
-        try:
-            row = run_case(model, case, nominal, noise, out, workers)
-        except Exception as err:  # noqa: BLE001 - a failing case is recorded and the batch goes on
-            row = {"case": case.name, "truth": case.effect, "error": f"{type(err).__name__}: {err}",
-                   "traceback": traceback.format_exc(limit=3)}
-        done[case.name] = row
-        with results_path.open("a") as f:
-            f.write(json.dumps(row, default=json_default) + "\n")
-        if progress:
-            progress(f"[{k}/{len(all_cases)}] {case.name}: " + (row.get("error") or
-                     f"ranked first {row['ranked_first']}, claimed {row['selected'] or 'none'} ({row['wall_time_s']:.0f} s)"))
+    pending = [c for c in all_cases if c.name not in done or "error" in done[c.name]]
+    jobs = [(case, nominal, noise, 1 if cluster else workers) for case in pending]
+    with WorkerPool(model, 1, cluster) as pool:
+        for finished, (i, result, error) in enumerate(pool.completed(_case_job, jobs), 1):
+            case = pending[i]
+            row, diagnosis = result if error is None else ({"case": case.name, "truth": case.effect,
+                                                            "error": f"worker lost: {type(error).__name__}: {error}"}, None)
+            if diagnosis is not None:
+                write_diagnosis(diagnosis, out / "cases" / case.name)
+            done[case.name] = row
+            with results_path.open("a") as f:
+                f.write(json.dumps(row, default=json_default) + "\n")
+            if progress:
+                progress(f"[{finished + len(all_cases) - len(pending)}/{len(all_cases)}] {case.name}: " + (row.get("error") or
+                         f"ranked first {row['ranked_first']}, claimed {row['selected'] or 'none'} ({row['wall_time_s']:.0f} s)"))
     summary = summarize([done[c.name] for c in all_cases if c.name in done], noise_deg)
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=json_default))
     (out / "summary.md").write_text(summary_markdown(summary))

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import dataclasses
 import time as _time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -37,6 +36,7 @@ from trunk_drake.diagram import TrunkOptions, rotation_coordinates
 from trunk_drake.gap.catalogue import CATALOGUE, Effect, effect
 from trunk_drake.gap.linear import LinearParams, linearize
 from trunk_drake.optim.fit import OUTPUT_NAMES, levenberg_marquardt
+from trunk_drake.parallel import WorkerPool
 from trunk_drake.signals import estimate_frf, vaf
 from trunk_drake.signals.sampled import SampledSignal
 from trunk_drake.simulation import SimulationError, simulate
@@ -186,43 +186,13 @@ def _simulate_outputs(model, options: TrunkOptions, trial: TrialData, outputs) -
     return y - y.mean(axis=0), op
 
 
-_WORKER = {}
-
-
-def _init(spec, dofs):
-    from trunk_drake.model.trunk_model import load_model
-
-    _WORKER["model"] = load_model(dofs, spec=spec)
-
-
-def _sim_job(args):
-    options, trial, outputs = args
+def _sim_job(model, job):
+    """Worker job: one trial's outputs and operating point, or the SimulationError of a diverging run."""
+    options, trial, outputs = job
     try:
-        return _simulate_outputs(_WORKER["model"], options, trial, outputs)
+        return _simulate_outputs(model, options, trial, outputs)
     except SimulationError as err:
         return err
-
-
-class Simulator:
-    """Runs (options, trial, outputs) simulations, in a persistent pool of worker processes
-    (each builds the model once) when workers > 1. Use as a context manager."""
-
-    def __init__(self, model, workers: int):
-        self.model, self.workers, self.pool = model, workers, None
-
-    def __enter__(self):
-        if self.workers > 1:
-            self.pool = ProcessPoolExecutor(self.workers, initializer=_init, initargs=(self.model.spec, self.model.dofs))
-        else:
-            _WORKER["model"] = self.model
-        return self
-
-    def __exit__(self, *exc):
-        if self.pool:
-            self.pool.shutdown()
-
-    def run(self, jobs) -> list:
-        return list(self.pool.map(_sim_job, jobs)) if self.pool else [_sim_job(job) for job in jobs]
 
 
 # ------------------------------------------------------------------------- the search
@@ -390,7 +360,7 @@ class TimeDomainFitter:
     """Refit and score models with full nonlinear simulations (first halves train, second test):
     secant Levenberg-Marquardt over the `free` coordinates of x (others held)."""
 
-    def __init__(self, simulator: Simulator, screen: LinearScreen, noise, outputs):
+    def __init__(self, simulator: WorkerPool, screen: LinearScreen, noise, outputs):
         self.simulator, self.screen, self.noise, self.outputs = simulator, screen, noise, outputs
         self.trials = screen.trials
         self.simulations = 0
@@ -400,7 +370,7 @@ class TimeDomainFitter:
         keys = [(tuple(e.name for e in effects), np.asarray(p, float).tobytes()) for p in points]
         todo = {k: p for k, p in zip(keys, points) if k not in self.cache}
         jobs = [(self.screen.space.options_for(p, effects), t, self.outputs) for p in todo.values() for t in self.trials]
-        sims = self.simulator.run(jobs) if jobs else []
+        sims = self.simulator.map(_sim_job, jobs)
         self.simulations += len(jobs)
         n = len(self.trials)
         for i, k in enumerate(todo):
@@ -667,12 +637,12 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
     noise = np.broadcast_to(np.asarray(noise, float), (len(outputs),)).copy() if noise is not None else estimate_noise(data)
     if say:
         say(f"{len(data)} trials, noise {np.round(np.degrees(noise), 3).tolist()} deg; simulating the nominal model")
-    with Simulator(model, workers) as simulator:
+    with WorkerPool(model, workers) as simulator:
         return _diagnose(model, data, options, noise, outputs, candidates, threshold, max_effects, refine, simulator, say, wall)
 
 
 def _diagnose(model, data, options, noise, outputs, candidates, threshold, max_effects, refine, simulator, say, wall):
-    results = simulator.run([(options, t, outputs) for t in data])
+    results = simulator.map(_sim_job, [(options, t, outputs) for t in data])
     for t, r in zip(data, results):
         if isinstance(r, Exception):
             raise ValueError(f"the nominal model diverges on {t.name}: {r}")

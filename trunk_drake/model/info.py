@@ -75,10 +75,15 @@ def format_model_info(info: dict) -> str:
         *(f"  {g:20s} {n:3d}" for g, n in info["muscles_per_group"].items()),
         "absent thesis groups: " + "; ".join(f"{g} ({why})" for g, why in info["absent_thesis_groups"].items()),
         f"total mass {info['total_mass_kg']:.2f} kg; upper body ({', '.join(ub['bodies'])}) {ub['mass_kg']:.2f} kg",
-        f"upper-body centre of mass: {100 * ub['com_anterior_of_L4_L5_joint_m']:+.1f} cm anterior and "
-        f"{100 * ub['com_superior_of_L4_L5_joint_m']:.1f} cm superior to the L4/L5 joint centre; "
-        f"{100 * ub['com_anterior_of_L4_body_centre_m']:+.1f} cm anterior to the L4 body centre",
-        f"  thesis (Schmid et al. model): {100 * ub['thesis_com_anterior_of_L4_m']:.1f} cm anterior to L4 -> "
-        + ("agrees (within 1 cm)" if ub["agrees_with_thesis"] else "does NOT agree: MyoTorso has no arms and a posterior lumped upper body"),
+        f"upper-body centre of mass: {_cm(ub['com_anterior_of_L4_L5_joint_m'], 'anterior', 'posterior')} and "
+        f"{_cm(ub['com_superior_of_L4_L5_joint_m'], 'superior', 'inferior')} to the L4/L5 joint centre; "
+        f"{_cm(ub['com_anterior_of_L4_body_centre_m'], 'anterior', 'posterior')} to the L4 body centre",
+        f"  thesis (Schmid et al. model): {_cm(ub['thesis_com_anterior_of_L4_m'], 'anterior', 'posterior')} to L4 -> "
+        + ("agrees (within 1 cm)" if ub["agrees_with_thesis"] else f"does NOT agree: {info['model']} has no arms and a posterior lumped upper body"),
     ]
     return "\n".join(lines)
+
+
+def _cm(metres: float, positive: str, negative: str) -> str:
+    """A signed distance in words: "1.1 cm posterior" for -0.011 with ("anterior", "posterior")."""
+    return f"{100 * abs(metres):.1f} cm {positive if metres >= 0 else negative}"

@@ -19,7 +19,7 @@ import numpy as np
 
 from trunk_drake.data import load_toml
 from trunk_drake.model.paths import quat_matrix
-from trunk_drake.model.plant import _MYOTORSO_LEVEL_JOINTS, LEVELS
+from trunk_drake.model.plant import LEVELS, opensim_coordinate
 from trunk_drake.model.spec import (
     BodySpec,
     CouplingSpec,
@@ -37,7 +37,7 @@ _WRAP_KINDS = {2: "sphere", 5: "cylinder"}  # mjGEOM_SPHERE, mjGEOM_CYLINDER
 _WRAP_SITE, _WRAP_SPHERE, _WRAP_CYLINDER = 3, 4, 5  # mjtWrap
 _EQ_JOINT = 2  # mjEQ_JOINT
 RHYTHM_DRIVER = "flex_extension"  # Lumbar_C_210's net lumbar flexion-extension coordinate
-RHYTHM_LEVELS = tuple(_MYOTORSO_LEVEL_JOINTS[level][0] for level in LEVELS)  # flexion joints, L5/S1 ... L1/L2
+RHYTHM_LEVELS = tuple(opensim_coordinate(f"{level}_FE")[0] for level in LEVELS)  # flexion joints, L5/S1 ... L1/L2
 
 
 def lumbar_c210_l5_s1_slope() -> float:

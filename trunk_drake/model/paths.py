@@ -281,17 +281,13 @@ def wrap(x0, x1, center, R, radius, cylinder, side, has_side, w0, w1, work):
 # Written with explicit 3-vector loops: tiny numpy temporaries and BLAS calls would dominate.
 
 @numba.njit(cache=True, inline="always")
-def _add_segment(m, P, a, ba, Q, b, bb, revolute, moves, axes, axo, lengths, grad):
-    """Add the straight segment P[a] (body ba) -> Q[b] (body bb) to muscle m."""
-    u0, u1, u2 = Q[b, 0] - P[a, 0], Q[b, 1] - P[a, 1], Q[b, 2] - P[a, 2]
-    L = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
-    lengths[m] += L
-    if L < MINVAL:
-        return
-    u0, u1, u2 = u0 / L, u1 / L, u2 / L
-    # u . (J_b - J_a); revolute column k: moves * a_k . (p x u) - u . (a_k x o_k)
-    ca0, ca1, ca2 = P[a, 1] * u2 - P[a, 2] * u1, P[a, 2] * u0 - P[a, 0] * u2, P[a, 0] * u1 - P[a, 1] * u0
-    cb0, cb1, cb2 = Q[b, 1] * u2 - Q[b, 2] * u1, Q[b, 2] * u0 - Q[b, 0] * u2, Q[b, 0] * u1 - Q[b, 1] * u0
+def add_pull(m, u0, u1, u2, pa, ba, pb, bb, revolute, moves, axes, axo, grad):
+    """grad[m] += u . (J_b - J_a) for points pa (on body ba) and pb (on body bb), unit vector u.
+
+    Revolute column k: moves * a_k . (p x u) - u . (a_k x o_k); prismatic: moves * u . a_k.
+    """
+    ca0, ca1, ca2 = pa[1] * u2 - pa[2] * u1, pa[2] * u0 - pa[0] * u2, pa[0] * u1 - pa[1] * u0
+    cb0, cb1, cb2 = pb[1] * u2 - pb[2] * u1, pb[2] * u0 - pb[0] * u2, pb[0] * u1 - pb[1] * u0
     for k in range(axes.shape[0]):
         if revolute[k]:
             base = u0 * axo[k, 0] + u1 * axo[k, 1] + u2 * axo[k, 2]
@@ -302,19 +298,44 @@ def _add_segment(m, P, a, ba, Q, b, bb, revolute, moves, axes, axo, lengths, gra
         grad[m, k] += moves[bb, k] * jb - moves[ba, k] * ja
 
 
-@_jit
-def _path_kernel(R, p, axes, origins, revolute, moves, site_body, site_local, st, wr, wr_body, wr_pos, wr_rot,
-                 wr_radius, wr_cyl, n_muscles):
+@numba.njit(cache=True, inline="always")
+def _add_segment(m, P, a, ba, Q, b, bb, revolute, moves, axes, axo, lengths, grad):
+    """Add the straight segment P[a] (body ba) -> Q[b] (body bb) to muscle m."""
+    u0, u1, u2 = Q[b, 0] - P[a, 0], Q[b, 1] - P[a, 1], Q[b, 2] - P[a, 2]
+    L = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    lengths[m] += L
+    if L < MINVAL:
+        return
+    add_pull(m, u0 / L, u1 / L, u2 / L, P[a], ba, Q[b], bb, revolute, moves, axes, axo, grad)
+
+
+@numba.njit(cache=True, inline="always")
+def site_positions(R, p, site_body, site_local):
+    """World positions (n_sites, 3) of points given in their bodies' frames."""
     n_sites = site_body.shape[0]
     P = np.empty((n_sites, 3))
     for i in range(n_sites):
         b = site_body[i]
         for r in range(3):
             P[i, r] = R[b, r, 0] * site_local[i, 0] + R[b, r, 1] * site_local[i, 1] + R[b, r, 2] * site_local[i, 2] + p[b, r]
-    nc = axes.shape[0]
-    axo = np.empty((nc, 3))
-    for k in range(nc):
+    return P
+
+
+@numba.njit(cache=True, inline="always")
+def axis_moments(axes, origins):
+    """a_k x o_k for every joint axis (the point-independent part of a revolute Jacobian column)."""
+    axo = np.empty((axes.shape[0], 3))
+    for k in range(axes.shape[0]):
         _cross(axes[k], origins[k], axo[k])
+    return axo
+
+
+@_jit
+def _path_kernel(R, p, axes, origins, revolute, moves, site_body, site_local, st, wr, wr_body, wr_pos, wr_rot,
+                 wr_radius, wr_cyl, n_muscles):
+    P = site_positions(R, p, site_body, site_local)
+    axo = axis_moments(axes, origins)
+    nc = axes.shape[0]
     lengths = np.zeros(n_muscles)
     grad = np.zeros((n_muscles, nc))
     for h in range(st.shape[0]):

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import os
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from pydrake.multibody.tree import BodyIndex, JointIndex
@@ -12,6 +15,8 @@ from trunk_drake.model.anthropometry import Passenger, with_passenger
 from trunk_drake.model.architecture import with_hill_parameters
 from trunk_drake.model.coupled import CoupledPlant
 from trunk_drake.model.myotorso import read_myotorso
+from trunk_drake.model.osim import load_osim_spec
+from trunk_drake.model.osim_kinematics import OsimKinematics
 from trunk_drake.model.paths import MusclePaths, PathState
 from trunk_drake.model.plant import DOFS, LEVELS, Coordinate, build_plant
 from trunk_drake.model.spec import ModelSpec
@@ -36,7 +41,7 @@ class TrunkModel:
     coordinate_info: list[Coordinate]
     joint_info: list[Coordinate]
     coupling: np.ndarray | None
-    _paths: MusclePaths = field(repr=False)
+    _paths: MusclePaths | OsimKinematics = field(repr=False)
     _context: object = field(repr=False)
     _warned: set = field(default_factory=set, repr=False)
 
@@ -77,11 +82,13 @@ class TrunkModel:
         s = self.level_matrix.sum(axis=0)
         return s * (float(lumbar_flexion) / (s @ s))
 
+    def load_options(self) -> dict:
+        """The options of `load_model` that, with `spec`, rebuild this model (worker processes do)."""
+        return {"dofs": self.dofs, "pelvis_free": self.pelvis_free, "pelvis_mass": self.pelvis_mass}
+
     def variant(self, **changes) -> "TrunkModel":
         """The same model (same spec) rebuilt with other options of `load_model`."""
-        options = {"dofs": self.dofs, "pelvis_free": self.pelvis_free, "pelvis_mass": self.pelvis_mass}
-        options.update(changes)
-        return load_model(spec=self.spec, **options)
+        return load_model(spec=self.spec, **{**self.load_options, **changes})
 
     def muscle_array(self, attribute: str) -> np.ndarray:
         """A per-muscle parameter as an array, e.g. ``muscle_array("max_isometric_force")``."""
@@ -117,14 +124,58 @@ class TrunkModel:
         for i in self._pose_bodies:  # only bodies that carry sites, wraps or joint frames
             poses[i] = all_poses[i].GetAsMatrix34()
         R, p = poses[:, :, :3], poses[:, :, 3]
-        Rj = R[self._joint_body]
-        axes = (Rj @ self._joint_axis[:, :, None])[:, :, 0]
-        origins = (Rj @ self._joint_anchor[:, :, None])[:, :, 0] + p[self._joint_body]
+        if isinstance(self._paths, OsimKinematics):
+            return self._paths.path_state(R, p, plant.GetPositions(context), self._joint_frames(), v)
+        axes, origins = self._joint_frames()(R, p)
         if self.coupling is None:
             return self._paths.compute(R, p, axes, origins, v)
         state = self._paths.compute(R, p, axes, origins, None if v is None else self.coupling @ np.asarray(v, float))
         state.moment_arms = state.moment_arms @ self.coupling  # -dL/dq = -(dL/dq_joints) G
         return state
+
+    def _joint_frames(self):
+        """Function of body poses (R, p) giving the world axis and a point of every coordinate's joint."""
+        def frames(R, p):
+            Rj = R[self._joint_body]
+            axes = (Rj @ self._joint_axis[:, :, None])[:, :, 0]
+            return axes, (Rj @ self._joint_anchor[:, :, None])[:, :, 0] + p[self._joint_body]
+        return frames
+
+    # ---- OpenSim models: the file's own coordinates --------------------------------------
+    def _osim(self) -> OsimKinematics:
+        if not isinstance(self._paths, OsimKinematics):
+            raise ValueError(f"model {self.spec.name!r} was not read from an OpenSim file; it has no source coordinates")
+        return self._paths
+
+    def source_coordinates(self, q) -> dict[str, float]:
+        """The OpenSim model's own coordinates (its names, signs and units: rad, m) at q."""
+        values = self._osim().coordinate_values(self.check_q(q, check_range=False))
+        return dict(zip(self._osim().source.names, map(float, values)))
+
+    def q_from_source(self, values: dict[str, float]) -> np.ndarray:
+        """Plant positions q from the OpenSim model's coordinate values (missing ones: defaults)."""
+        osim = self._osim()
+        q = np.zeros(len(self.coordinate_info))
+        for k, c in enumerate(self.coordinate_info):
+            if c.source_joint is None:
+                q[k] = values.get(c.name, 0.0)
+                continue
+            joint = self.spec.joint(c.source_joint)
+            value = values.get(joint.coordinate, osim.source.default[osim.source.index[joint.coordinate]])
+            q[k] = c.sign * float(joint.function.value(value))
+        return q
+
+    def source_moment_arms(self, q) -> dict[str, np.ndarray]:
+        """Moment arms (n_muscles,) about each plant coordinate's OpenSim coordinate (m or m/rad of it)."""
+        q = self.check_q(q)
+        values = self.source_coordinates(q)
+        arms = self.moment_arms(q)
+        out = {}
+        for k, c in enumerate(self.coordinate_info):
+            if c.source_joint is not None:
+                joint = self.spec.joint(c.source_joint)
+                out[joint.coordinate] = arms[:, k] * c.sign * float(joint.function.derivative(values[joint.coordinate]))
+        return out
 
     def path_state(self, q, v=None) -> PathState:
         """Lengths (m), moment arms (m or m/rad, = -dL/dq) and, with v, lengthening velocities."""
@@ -133,6 +184,24 @@ class TrunkModel:
         if v is not None:
             v = self.check_q(v, "v", check_range=False)
         return self.path_state_from_context(self._context, v)
+
+    def center_of_mass(self, q) -> np.ndarray:
+        """Whole-model centre of mass in the world at q (follower bodies at their true poses), m.
+
+        Equals the plant's own unless an OpenSim model has follower bodies with mass (see
+        trunk_drake.model.osim_config): the plant holds those at their q = 0 displacement.
+        """
+        q = self.check_q(q, check_range=False)
+        self.plant.SetPositions(self._context, q)
+        all_poses = self.plant.get_body_poses_output_port().Eval(self._context)
+        poses = np.array([X.GetAsMatrix34() for X in all_poses])
+        R, p = poses[:, :, :3], poses[:, :, 3]
+        if isinstance(self._paths, OsimKinematics):
+            R, p = self._paths.repose(R, p, q)
+        index = [int(self.plant.GetBodyByName(b.name).index()) for b in self.spec.bodies]
+        mass = np.array([b.mass for b in self.spec.bodies])
+        points = np.array([R[i] @ b.com + p[i] for i, b in zip(index, self.spec.bodies)])
+        return mass @ points / mass.sum()
 
     def muscle_lengths(self, q) -> np.ndarray:
         """Musculotendon lengths (n_muscles,), m."""
@@ -175,7 +244,10 @@ def _build(spec: ModelSpec, dofs: str, pelvis_mass: float | None, pelvis_free: b
         for b in bodies.GetBodiesKinematicallyAffectedBy([JointIndex(int(joint.index()))]):
             moves[int(b), k] = 1.0
     names = [bodies.get_body(_body_index(i)).name() for i in range(n_bodies)]
-    paths = MusclePaths(spec, names, [c.kind for c in joints], moves)
+    if spec.path_semantics == "opensim":
+        paths = OsimKinematics(spec, coords, names, moves)
+    else:
+        paths = MusclePaths(spec, names, [c.kind for c in joints], moves)
     model = TrunkModel(spec=spec, dofs=dofs, pelvis_free=pelvis_free, pelvis_mass=pelvis_mass, plant=plant, coordinate_info=coords,
                        joint_info=joints, coupling=plant.coupling if coupled else None, _paths=paths,
                        _context=plant.CreateDefaultContext())
@@ -187,18 +259,50 @@ def _body_index(i: int) -> BodyIndex:
     return BodyIndex(i)
 
 
-def load_model(dofs: str = "sagittal", spec: ModelSpec | None = None, pelvis_mass: float | None = None,
-               pelvis_free: bool = True, passenger: Passenger | None = None) -> TrunkModel:
-    """The default MyoTorso trunk model in configuration `dofs` ("sagittal", "spine3d" or "rhythm").
+MODEL_ENV = "TRUNK_DRAKE_MODEL"  # an .osim path: the model `load_model()` loads when none is given
 
-    Hill fiber and tendon lengths are derived from the neutral-posture musculotendon lengths
-    by Christophy et al.'s method unless `spec` already carries them. `pelvis_mass` replaces
-    the sacrum's mass; ``pelvis_free=False`` welds the sagittal pelvis (no ``pelvis_tx``).
-    `passenger` adds the arms and the rest of the head to the thorax (model/anthropometry.py).
+
+@contextmanager
+def model_source(path: str | Path | None):
+    """Within the block, `load_model()` without a model loads `path` (worker processes inherit it)."""
+    if path is None:
+        yield
+        return
+    previous = os.environ.get(MODEL_ENV)
+    os.environ[MODEL_ENV] = str(path)
+    try:
+        yield
+    finally:
+        if previous is None:
+            os.environ.pop(MODEL_ENV, None)
+        else:
+            os.environ[MODEL_ENV] = previous
+
+
+def load_model(model: str | Path | None = None, dofs: str | None = None, spec: ModelSpec | None = None,
+               pelvis_mass: float | None = None, pelvis_free: bool = True, passenger: Passenger | None = None) -> TrunkModel:
+    """A trunk model in configuration `dofs` ("sagittal", "spine3d", "rhythm" or "all"; default "sagittal").
+
+    `model`: None or "myotorso" for the default MyoTorso model (None: $TRUNK_DRAKE_MODEL if set,
+    see `model_source`), or the path of an OpenSim ``.osim`` file (read by
+    `trunk_drake.model.osim`, mapped with its file in ``models/osim/``);
+    a configuration name in its place is read as `dofs` (``load_model("spine3d")``). Hill
+    fiber and tendon lengths are derived from the neutral-posture musculotendon lengths by
+    Christophy et al.'s method unless the spec carries them (OpenSim files do).
+    `pelvis_mass` replaces the pelvis' mass; ``pelvis_free=False`` welds the sagittal pelvis
+    (no ``pelvis_tx``). `passenger` adds the arms and the rest of the head to the thorax
+    (model/anthropometry.py).
     """
+    if model is not None and str(model) in DOFS:
+        if dofs is not None:
+            raise ValueError(f"load_model got configuration {model!r} and dofs={dofs!r}; give one")
+        model, dofs = None, str(model)
+    dofs = dofs or "sagittal"
     if dofs not in DOFS:
         raise ValueError(f"unknown configuration dofs={dofs!r}; expected one of {DOFS}")
-    spec = spec or read_myotorso()
+    if spec is None:
+        model = model if model is not None else os.environ.get(MODEL_ENV)
+        spec = read_myotorso() if model is None or str(model).lower() == "myotorso" else load_osim_spec(model)
     if any(np.isnan(m.optimal_fiber_length) for m in spec.muscles):
         geometric = _build(spec, "spine3d", None, False)
         neutral = geometric.path_state(np.zeros(len(geometric.coordinate_info))).lengths

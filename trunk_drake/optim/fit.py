@@ -20,14 +20,15 @@ from __future__ import annotations
 
 import dataclasses
 import time as _time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.solvers import MathematicalProgram, Solve
+from tqdm import tqdm
 
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.metadata import json_default
+from trunk_drake.parallel import WorkerPool
 from trunk_drake.signals import estimate_frf, vaf
 from trunk_drake.signals.sampled import SampledSignal
 from trunk_drake.simulation import SimulationError, simulate
@@ -163,18 +164,10 @@ class Objective:
         return np.concatenate(parts), engaged
 
 
-_WORKER: Objective | None = None
-
-
-def _init_worker(spec, dofs, targets, layout, options, accuracy):
-    global _WORKER
-    from trunk_drake.model.trunk_model import load_model
-
-    _WORKER = Objective(load_model(dofs, spec=spec), targets, layout, options, accuracy)
-
-
-def _evaluate(x):
-    return _WORKER(x)
+def _evaluate(model, job):
+    """Worker job: the residuals at x of the objective (targets, layout, options, accuracy)."""
+    x, problem = job
+    return Objective(model, *problem)(x)
 
 
 @dataclass
@@ -260,13 +253,19 @@ def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, fixed_gain
     cache: dict[bytes, np.ndarray] = {}
     counter = {"simulations": 0}
 
-    pool = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
-                               initargs=(model.spec, model.dofs, targets, layout, options, accuracy)) if workers > 1 else None
-    local = None if pool else Objective(model, targets, layout, options, accuracy)
+    problem = (targets, layout, options, accuracy)
+    pool = WorkerPool(model, workers)
 
-    def evaluate_many(points):
+    def evaluate_many(points, what="cost"):
         todo = [p for p in points if p.tobytes() not in cache]
-        results = list(pool.map(_evaluate, todo)) if pool else [local(p) for p in todo]
+        results = [None] * len(todo)
+        with tqdm(total=len(todo) * len(targets), desc=f"  start {current['start'] + 1}/{n_starts}: {what}", unit="sim",
+                  leave=False, disable=not progress or not todo) as bar:
+            for i, result, error in pool.completed(_evaluate, [(p, problem) for p in todo]):
+                if error is not None:
+                    raise error
+                results[i] = result
+                bar.update(len(targets))
         for p, (r, engaged) in zip(todo, results):
             cache[p.tobytes()] = (r, engaged)
             counter["simulations"] += len(targets)
@@ -283,13 +282,16 @@ def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, fixed_gain
         active = np.concatenate([engaged, np.ones(len(layout.groups), dtype=bool)])  # kp columns, then kv
         points = [x + np.eye(len(x))[j] * steps[j] for j in np.flatnonzero(active)]
         J = np.zeros((r0.size, len(x)))
-        for j, (column, _) in zip(np.flatnonzero(active), evaluate_many(points)):
+        for j, (column, _) in zip(np.flatnonzero(active), evaluate_many(points, "Jacobian")):
             J[:, j] = (column - r0) / steps[j]
         return J
 
     current = {"start": 0}
     starts = []
-    try:
+    if progress:
+        print(f"fitting {len(layout.names)} gains to {len(targets)} target(s) ({sum(t.time.size for t in targets)} samples) "
+              f"on {max(1, workers)} worker(s); {n_starts} start(s), at most {max_iterations} iterations each", flush=True)
+    with pool:
         for k, x0 in enumerate(start_points(layout, scenario, n_starts, seed, start)):
             current["start"] = k
             before = counter["simulations"]
@@ -299,19 +301,15 @@ def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, fixed_gain
         best = min(starts, key=lambda s: s.cost)
         J = jac(best.x)  # a fresh finite-difference Jacobian for the covariance
         r = fun(best.x)
-    finally:
-        if pool:
-            pool.shutdown()
 
     dof = max(1, r.size - best.x.size)
     cov = float(r @ r) / dof * _inverse_or_inf(J.T @ J)
-    gains = GainLayout(layout.groups).gains(best.x)
+    gains = layout.gains(best.x)  # the fixed groups included
     std_x = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     std_flat = (10.0 ** best.x) * np.log(10.0) * std_x
     n = len(layout.groups)
     std = {"kp": dict(zip(layout.groups, std_flat[:n].tolist())), "kv": dict(zip(layout.groups, std_flat[n:].tolist()))}
-    objective = local or Objective(model, targets, layout, options, accuracy)
-    vafs, frfs, series = goodness_of_fit(objective, best.x, targets)
+    vafs, frfs, series = goodness_of_fit(Objective(model, *problem), best.x, targets)
     return FitResult(gains, std, layout.names, cov, float(0.5 * r @ r), vafs, frfs, series, history, starts,
                      counter["simulations"] + len(targets), _time.perf_counter() - wall,
                      options={"scenario": scenario, "groups": list(layout.groups), "n_starts": n_starts,
@@ -436,9 +434,13 @@ def write_fit(result: FitResult, out_dir) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     files = {"json": out / "fit.json", "gains": out / "gains.toml"}
     files["json"].write_text(json.dumps(result.to_dict(), indent=2, default=json_default))
+    def line(kind, group, value):
+        std = result.std[kind].get(group)
+        return f"{group} = {value:.6g}  # " + ("fixed, not fitted" if std is None else f"+- {std:.3g}")
+
     lines = ["# Reflex gains fitted by trunk-drake (1 SD in comments).", "", "[kp]"]
-    lines += [f"{g} = {v:.6g}  # +- {result.std['kp'][g]:.3g}" for g, v in result.gains["kp"].items()]
-    lines += ["", "[kv]"] + [f"{g} = {v:.6g}  # +- {result.std['kv'][g]:.3g}" for g, v in result.gains["kv"].items()]
+    lines += [line("kp", g, v) for g, v in result.gains["kp"].items()]
+    lines += ["", "[kv]"] + [line("kv", g, v) for g, v in result.gains["kv"].items()]
     files["gains"].write_text("\n".join(lines) + "\n")
     files.update(plot_fit(result, out))
     return files

@@ -57,7 +57,12 @@ class StaticInfeasibleError(ValueError):
 
 @dataclass(frozen=True)
 class PointLoad:
-    """An external force (N, world frame) at `point` (m, in the frame of `body`)."""
+    """An external force (N, world frame) at `point` (m, in the frame of `body`).
+
+    The world frame is MyoTorso's: z up, -y anterior (forwards), +x to the subject's left, so a
+    forward push is ``(0, -F, 0)``, not ``(F, 0, 0)`` (that bends the trunk sideways). The body
+    frames are the OpenSim lumbar model's: x anterior, y superior, z right.
+    """
 
     body: str
     point: tuple[float, float, float]

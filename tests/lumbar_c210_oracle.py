@@ -1,4 +1,4 @@
-"""Compare the model with the original OpenSim Lumbar_C_210 model (an oracle; needs `opensim`).
+"""Compare MyoTorso with the original OpenSim Lumbar_C_210 model (test oracle; needs `opensim`).
 
 MyoTorso was converted from Christophy et al.'s Lumbar_C_210.osim. This module loads that
 file with OpenSim, reads its musculotendon lengths at the neutral posture and its Thelen
@@ -11,23 +11,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from trunk_drake.model.architecture import derive_hill_lengths
-
-SHARED_OSIM = Path(__file__).resolve().parents[3] / "shared" / "reference" / "lumbar_c_210" / "Lumbar_C_210.osim"
-
-
-def oracle_path() -> Path | None:
-    """Lumbar_C_210.osim beside the repository (../shared, as the tests expect), or None where it or OpenSim is absent."""
-    try:
-        import opensim  # noqa: F401
-    except ImportError:
-        return None
-    return SHARED_OSIM if SHARED_OSIM.exists() else None
-
 
 @dataclass
 class OsimMuscles:
