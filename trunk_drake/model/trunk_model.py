@@ -82,6 +82,7 @@ class TrunkModel:
         s = self.level_matrix.sum(axis=0)
         return s * (float(lumbar_flexion) / (s @ s))
 
+    @property
     def load_options(self) -> dict:
         """The options of `load_model` that, with `spec`, rebuild this model (worker processes do)."""
         return {"dofs": self.dofs, "pelvis_free": self.pelvis_free, "pelvis_mass": self.pelvis_mass}
