@@ -15,16 +15,21 @@ N_POSES = 300
 KNOWN_ASYMMETRIC = {"LTpT_T12"}
 
 
-def mujoco_oracle(dofs):
-    """Compiled MyoTorso with couplings disabled, plus the sagittal pelvis slide when needed."""
+def compile_mujoco(pelvis_slide: bool):
+    """Compiled MyoTorso (its equality constraints active), with the sagittal pelvis slide if asked."""
     from myo_sim.build.compose import build_spec
 
     spec = build_spec("myotorso")
-    if dofs == "sagittal":
+    if pelvis_slide:
         joint = spec.body("sacrum").add_joint()
         joint.name, joint.type, joint.axis = "pelvis_tx", mujoco.mjtJoint.mjJNT_SLIDE, [1.0, 0.0, 0.0]
         joint.range = [-1.0, 1.0]
-    m = spec.compile()
+    return spec.compile()
+
+
+def mujoco_oracle(dofs):
+    """Compiled MyoTorso with couplings disabled, plus the sagittal pelvis slide when needed."""
+    m = compile_mujoco(dofs == "sagittal")
     m.eq_active0[:] = 0
     return m, mujoco.MjData(m)
 

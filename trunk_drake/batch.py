@@ -5,7 +5,7 @@ Cartesian product makes the cases) and optional ``[[cases]]`` (explicit extra ca
 onto the defaults). Case parameters (CASE_DEFAULTS): direction, strength_scale,
 min_activation, p, include_passive, level (thoracic landmarks carrying the sagittal load),
 shoulder ("model" | "acromion"), lumbar_flexion_deg (total lumbar flexion, spread equally
-over the five levels), sweep, step, dofs.
+over the five levels, or along the rhythm), sweep, step, dofs ("spine3d", "sagittal", "rhythm").
 
 Runs on trunk_drake.parallel's worker pool: local processes or an existing Dask distributed
 cluster (``cluster="tcp://host:8786"``), each worker building its model once. Workers receive
@@ -101,9 +101,7 @@ def run_case(model, case: dict) -> dict:
     start = time.perf_counter()
     row = _row(case, worker=f"{socket.gethostname()}:{os.getpid()}")
     try:
-        q = np.zeros(len(model.coordinates))
-        for level in LEVELS:
-            q[model.coordinates.index(f"{level}_FE")] = np.radians(case["lumbar_flexion_deg"]) / len(LEVELS)
+        q = model.posture(np.radians(case["lumbar_flexion_deg"]))
         result = isometric_strength(
             model, (case["direction"],), q=q, level=tuple(case["level"]), shoulder=case["shoulder"], sweep=case["sweep"],
             step=case["step"], p=case["p"], min_activation=case["min_activation"],

@@ -13,7 +13,7 @@ import numpy as np
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import EventStatus
 
-from trunk_drake.diagram import TrunkDiagram, TrunkOptions, build_trunk_diagram
+from trunk_drake.diagram import SLIDING_PELVIS, TrunkDiagram, TrunkOptions, build_trunk_diagram
 from trunk_drake.metadata import run_metadata
 
 DEFAULT_INTEGRATOR = "radau3"  # L-stable: the vertebral damping modes reach ~4000 1/s
@@ -51,6 +51,7 @@ class SimulationResult:
     wall_time_s: float
     options: dict
     metadata: dict = field(default_factory=dict)
+    levels: dict = field(default_factory=dict)  # level angle (rad) by name, L5_S1_FE ... L1_L2_FE (any configuration)
 
     @property
     def sim_time_s(self) -> float:
@@ -61,9 +62,12 @@ class SimulationResult:
         return self.sim_time_s / self.wall_time_s if self.wall_time_s > 0 else float("inf")
 
     def coordinate(self, name: str) -> np.ndarray:
-        if name not in self.coordinates:
-            raise KeyError(f"no coordinate {name!r}; coordinates: {self.coordinates}")
-        return self.q[:, self.coordinates.index(name)]
+        """A coordinate's trajectory, or a level angle's (also in a coupled configuration, e.g. the rhythm)."""
+        if name in self.coordinates:
+            return self.q[:, self.coordinates.index(name)]
+        if name in self.levels:
+            return self.levels[name]
+        raise KeyError(f"no coordinate or level {name!r}; coordinates: {self.coordinates}, levels: {list(self.levels)}")
 
     def summary(self) -> dict:
         """Numbers a user checks first (JSON-friendly), with a warning when the trunk left the
@@ -104,6 +108,7 @@ class SimulationResult:
                       "platform_v_m_per_s": self.platform[:, 1], "platform_a_m_per_s2": self.platform[:, 2]}
         kinematics.update({f"{c}_{units['slide' if c == 'pelvis_tx' else 'hinge']}": self.q[:, i]
                            for i, c in enumerate(self.coordinates)})
+        kinematics.update({f"{name}_rad": angle for name, angle in self.levels.items() if name not in self.coordinates})  # coupled levels
         paths = {
             "states": out / "states.sto",
             "muscle_forces": out / "muscle_forces.sto",
@@ -130,7 +135,7 @@ class SimulationResult:
         rad/s (``<name>_u``), then ``<muscle>.activation`` and, with compliant tendons,
         ``<muscle>.fiber_length`` (m). ``pelvis_tx`` (m, anterior) is kept although the .osim
         has no such coordinate."""
-        from trunk_drake.model.plant import opensim_coordinate
+        from trunk_drake.model.plant import RHYTHM_COORDINATE, opensim_coordinate
 
         names, signs = [], []
         for c in self.coordinates:
@@ -142,10 +147,13 @@ class SimulationResult:
         states.update({f"{m}.activation": self.activation[:, i] for i, m in enumerate(self.muscles)})
         if self.options.get("tendon") == "compliant":
             states.update({f"{m}.fiber_length": self.fiber_length[:, i] for i, m in enumerate(self.muscles)})
-        header = {"convention": "Lumbar_C_210.osim coordinate names and signs: flex_extension is L5-S1, flexion is negative "
-                                "(trunk-drake's kinematics.csv: L5_S1_FE..L1_L2_FE, flexion positive); angles in rad, "
+        coupled = RHYTHM_COORDINATE in self.coordinates
+        header = {"convention": "Lumbar_C_210.osim coordinate names and signs: flex_extension is "
+                                + ("the lumbar rhythm's coordinate (minus trunk-drake's lumbar_FE)" if coupled else "L5-S1")
+                                + ", flexion is negative (trunk-drake's kinematics.csv: flexion positive); angles in rad, "
                                 "speeds (_u) in rad/s",
-                  "coupling": "the .osim couples L4_L5_FE..L1_L2_FE to flex_extension; here every level moves on its own",
+                  "coupling": ("the .osim's couplers give L4_L5_FE..L1_L2_FE from flex_extension, as trunk-drake's rhythm does"
+                               if coupled else "the .osim couples L4_L5_FE..L1_L2_FE to flex_extension; here every level moves on its own"),
                   "pelvis_tx": "anterior pelvis (platform) translation in m; not a coordinate of the .osim, whose sacrum is welded"}
         return states, header
 
@@ -284,7 +292,8 @@ def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, se
     coords = list(td.model.coordinates)
     # the platform signal is known analytically: sample it exactly (not from the step-wise log)
     platform = np.column_stack(signal.evaluate(t)) if signal is not None else np.zeros((len(t), 3))
-    if td.model.dofs == "sagittal" and not td.model.pelvis_free:  # prescribed: the pelvis follows the platform
+    levels = dict(zip(td.model.levels, (q @ td.model.level_matrix.T).T))
+    if td.model.dofs in SLIDING_PELVIS and not td.model.pelvis_free:  # prescribed: the pelvis follows the platform
         coords = ["pelvis_tx", *coords]
         q = np.column_stack([platform[:, 0], q])
         v = np.column_stack([platform[:, 1], v])
@@ -305,7 +314,7 @@ def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, se
         activation=logs["activation"], excitation=logs["excitation"], muscle_force=logs["tendon_force"],
         normalized_fiber_length=logs["normalized_fiber_length"], normalized_fiber_velocity=logs["normalized_fiber_velocity"],
         fiber_length=logs["fiber_length"],
-        platform=platform, stats=stats, wall_time_s=wall, options=opts,
+        platform=platform, stats=stats, wall_time_s=wall, options=opts, levels=levels,
         metadata=run_metadata(td.model, seed=seed, bandwidth=bandwidth, perturbation=getattr(signal, "to_dict", lambda: None)()),
     )
 

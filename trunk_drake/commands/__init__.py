@@ -95,3 +95,12 @@ def passenger_options(args, model) -> dict:
     return {"feedforward": feedforward, "stiffness": args.stiffness, "damping": args.damping,
             "srs": ShortRangeStiffness.from_reference() if args.srs else None, **gains}
 
+
+_CONFIGURATIONS = {"sagittal": "five independent lumbar flexion levels", "spine3d": "independent levels in 3-D, pelvis welded",
+                   "rhythm": "one lumbar flexion coordinate moving the levels with Lumbar_C_210's rhythm"}
+
+
+def dofs_argument(parser, choices=("sagittal", "rhythm"), default: str = "sagittal") -> None:
+    """`--dofs`: the model configuration a command runs on (trunk_drake.model.plant)."""
+    parser.add_argument("--dofs", choices=choices, default=default,
+                        help="; ".join(f"{c}: {_CONFIGURATIONS[c]}" for c in choices) + f" (default {default})")

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from trunk_drake.commands import count, positive, print_json
+from trunk_drake.commands import count, dofs_argument, positive, print_json
 from trunk_drake.optim.fit import THESIS_START
 
 
@@ -13,6 +13,7 @@ def add_command(sub) -> None:
     p.add_argument("data", nargs="*", help="trial files or folders (e.g. models/reference); none for --scenario settling")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--scenario", choices=sorted(THESIS_START), default="car")
+    dofs_argument(p)
     p.add_argument("--conditions", help="TOML with a [conditions] table (default: conditions.toml beside the data)")
     p.add_argument("--outputs", choices=["total", "levels", "all"], default="all",
                    help="fit the total lumbar rotation, the five level angles, or all (default; those present in the data)")
@@ -35,7 +36,7 @@ def run(args) -> int:
     from trunk_drake.optim.fit import OUTPUT_NAMES, fit_reflex_gains, settling_target, targets_from_trials, write_fit
     from trunk_drake.optim.static import coactivation
 
-    model = load_model("sagittal")
+    model = load_model(args.dofs)
     names = {"total": ("lumbar_rotation",), "levels": OUTPUT_NAMES[1:], "all": OUTPUT_NAMES}[args.outputs]
     if args.scenario == "settling":
         targets = [settling_target()]

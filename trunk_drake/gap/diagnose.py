@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from trunk_drake.diagram import TrunkOptions
+from trunk_drake.diagram import TrunkOptions, rotation_coordinates
 from trunk_drake.gap.catalogue import CATALOGUE, Effect, effect
 from trunk_drake.gap.linear import LinearParams, linearize
 from trunk_drake.optim.fit import OUTPUT_NAMES, levenberg_marquardt
@@ -178,10 +178,11 @@ def _simulate_outputs(model, options: TrunkOptions, trial: TrialData, outputs) -
     columns = [result.lumbar_rotation if o == "lumbar_rotation" else result.coordinate(o) for o in outputs]
     y = np.column_stack(columns)[trial.window]
     win = trial.window
-    levels = result.q[win][:, [result.coordinates.index(c) for c in OUTPUT_NAMES[1:]]]
+    levels = np.column_stack([result.coordinate(c) for c in OUTPUT_NAMES[1:]])[win]
+    rotation = np.column_stack([result.coordinate(model.coordinates[i]) for i in rotation_coordinates(model)])[win]
     # "amplitude": RMS of each level's angle about the bushings' rest angle (0), offset included,
     # for the statistical linearisation of amplitude-dependent laws
-    op = {"q": levels.mean(axis=0), "a": result.activation[win].mean(axis=0), "u": result.excitation[win].mean(axis=0),
+    op = {"q": rotation.mean(axis=0), "a": result.activation[win].mean(axis=0), "u": result.excitation[win].mean(axis=0),
           "amplitude": np.sqrt(np.mean(levels**2, axis=0))}
     return y - y.mean(axis=0), op
 

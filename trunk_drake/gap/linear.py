@@ -61,7 +61,7 @@ class LinearTrunk:
     """Open-loop linearisation (see module docstring). Coordinates q = the mechanical model's."""
 
     coordinates: list[str]
-    fe: np.ndarray  # indices of the lumbar flexion coordinates in q
+    levels: np.ndarray  # (n_levels, n): level angles = levels @ q (model.level_matrix)
     dvdq: np.ndarray  # (n, n)
     dvdv: np.ndarray  # (n, n)
     dvda: np.ndarray  # (n, m)
@@ -84,13 +84,14 @@ class LinearTrunk:
         columns total lumbar rotation then L5_S1 ... L1_L2."""
         freqs = np.atleast_1d(np.asarray(freqs, float))
         n = len(self.coordinates)
-        out = np.empty((freqs.size, 1 + self.fe.size), dtype=complex)
-        select = np.zeros(n)
-        select[self.fe] = 1.0
+        L = self.levels
+        out = np.empty((freqs.size, 1 + len(L)), dtype=complex)
+        select = L.sum(axis=0)  # the lumbar rotation as a function of q
         dvdq, dvdv = self.dvdq.copy(), self.dvdv.copy()
-        k_extra = np.broadcast_to(np.asarray(p.extra_stiffness, float), (self.fe.size,))
-        dvdq[:, self.fe] -= self.m_inv[:, self.fe] * k_extra
-        dvdv[:, self.fe] -= self.m_inv[:, self.fe] * p.extra_damping
+        k_extra = np.broadcast_to(np.asarray(p.extra_stiffness, float), (len(L),))
+        c_extra = np.broadcast_to(np.asarray(p.extra_damping, float), (len(L),))
+        dvdq -= self.m_inv @ (L.T * k_extra) @ L
+        dvdv -= self.m_inv @ (L.T * c_extra) @ L
         rate = self.rate / p.activation_scale
         stretch_q = (p.kp * self.stretch_active)[:, None] * self.dln_dq
         stretch_v = (0.5 * p.kv)[:, None] * self.dvn_dv
@@ -114,14 +115,15 @@ class LinearTrunk:
             else:
                 rhs = self.b_acc * s * s
             q = np.linalg.solve(Z, rhs)
-            out[i, 0] = q[self.fe].sum()
-            out[i, 1:] = q[self.fe]
+            out[i, 0] = select @ q
+            out[i, 1:] = L @ q
         return out
 
 
 def linearize(model, options: TrunkOptions, q0, a0, u0, seat: bool = False, h: float = 1e-6) -> LinearTrunk:
     """Open-loop linearisation of `model` with the non-feedback parts of `options` at the
-    operating point: posture q0 (the model's lumbar FE coordinates), activations a0, excitations u0.
+    operating point: posture q0 (the model's lumbar rotation coordinates, `rotation_coordinates`),
+    activations a0, excitations u0.
     With ``seat=True`` the pelvis slides freely (for the pelvis-seat compliance candidate)."""
     open_loop = dataclasses.replace(options, kp=0.0, kv=0.0, gto_gain=0.0, vestibular_gain=0.0, reflex_delay=0.0,
                                     vestibular_delay=0.0, feedforward=np.asarray(u0, float),
@@ -162,7 +164,7 @@ def linearize(model, options: TrunkOptions, q0, a0, u0, seat: bool = False, h: f
     l_set = td.reflex.l_desired
     u0 = np.asarray(u0, float)
     return LinearTrunk(
-        coordinates=list(base.coordinates), fe=np.asarray(td.fe_indices), dvdq=jac[vrows, :nq], dvdv=jac[vrows, nq:2 * nq],
+        coordinates=list(base.coordinates), levels=base.level_matrix, dvdq=jac[vrows, :nq], dvdv=jac[vrows, nq:2 * nq],
         dvda=jac[vrows, arows], m_inv=np.linalg.inv(plant.CalcMassMatrix(plant_ctx)), b_acc=b_acc,
         pelvis=base.coordinates.index("pelvis_tx") if seat else None, rate=-np.diag(jac[arows, arows]),
         dln_dq=-(kin.cos_pennation / params.optimal_fiber_length)[:, None] * R,

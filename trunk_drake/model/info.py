@@ -36,11 +36,17 @@ def model_info(model) -> dict:
     rel_joint, rel_body = com - joint_centre, com - body_centre
 
     groups = model.groups
+    rhythm = None
+    if model.coupling is not None:
+        rhythm = {"coordinate": model.coordinates[-1], "driver": spec.rhythm.driver, "source": spec.rhythm.source,
+                  "level_shares": dict(zip(model.levels, model.level_matrix[:, -1].tolist())),
+                  "routing": {c.name: float(g) for c, g in zip(model.joint_info, model.coupling[:, -1]) if c.name not in model.levels and g}}
     return {
         "model": spec.name,
         "source": spec.source,
         "dofs": model.dofs,
         "coordinates": model.coordinates,
+        "rhythm": rhythm,
         "n_muscles": model.n_muscles,
         "muscles_per_group": {g: len(m) for g, m in groups.items()},
         "absent_thesis_groups": load_toml("muscle_groups.toml")["absent"],
@@ -62,6 +68,9 @@ def format_model_info(info: dict) -> str:
     lines = [
         f"model {info['model']} ({info['source']}), configuration {info['dofs']!r}",
         f"coordinates ({len(info['coordinates'])}): {', '.join(info['coordinates'])}",
+        *([f"rhythm ({info['rhythm']['source']}): {info['rhythm']['coordinate']} = sum of the level angles; shares "
+           + ", ".join(f"{k} {v:.3f}" for k, v in info['rhythm']['level_shares'].items())
+           + "; routing " + ", ".join(f"{k} {v:+.4f} rad/rad" for k, v in info['rhythm']['routing'].items())] if info.get("rhythm") else []),
         f"muscles: {info['n_muscles']}",
         *(f"  {g:20s} {n:3d}" for g, n in info["muscles_per_group"].items()),
         "absent thesis groups: " + "; ".join(f"{g} ({why})" for g, why in info["absent_thesis_groups"].items()),

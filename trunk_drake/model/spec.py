@@ -156,6 +156,29 @@ class CouplingSpec:
 
 
 @dataclass(frozen=True)
+class RhythmSpec:
+    """A one-coordinate lumbar rhythm: every listed joint moves in proportion to one coordinate.
+
+    ``joint value = ratio * driver value`` in the source's own joint signs and units, where
+    `driver` names the source's independent coordinate (e.g. Lumbar_C_210's ``flex_extension``,
+    the whole lumbar spine's flexion-extension). `levels` are the intervertebral joints (root
+    to tip); `routing` are other coupled joints (e.g. a wrapping body turning with the spine).
+    """
+
+    driver: str
+    levels: tuple[str, ...]
+    level_ratios: tuple[float, ...]
+    routing: tuple[str, ...] = ()
+    routing_ratios: tuple[float, ...] = ()
+    source: str = ""
+
+    @property
+    def total(self) -> float:
+        """Sum of the level ratios: how far the levels turn in total per unit of the driver."""
+        return float(sum(self.level_ratios))
+
+
+@dataclass(frozen=True)
 class ModelSpec:
     """Everything needed to build the plant and the muscle paths of one model."""
 
@@ -166,6 +189,7 @@ class ModelSpec:
     wraps: tuple[WrapSpec, ...]
     muscles: tuple[MuscleSpec, ...]
     couplings: tuple[CouplingSpec, ...] = ()
+    rhythm: RhythmSpec | None = None  # the flexion-extension rhythm of the constrained source model
     landmarks: tuple[SiteSpec, ...] = ()  # named anatomical points (e.g. vertebral body centres)
     root_pos: np.ndarray = field(default_factory=lambda: np.zeros(3))  # root body origin in world
     root_quat: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))

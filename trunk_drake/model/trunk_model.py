@@ -13,12 +13,13 @@ from pydrake.multibody.tree import BodyIndex, JacobianWrtVariable, JointIndex
 
 from trunk_drake.model.anthropometry import Passenger, with_passenger
 from trunk_drake.model.architecture import with_hill_parameters
+from trunk_drake.model.coupled import CoupledPlant
 from trunk_drake.model.kinematics import TreeKinematics
 from trunk_drake.model.myotorso import read_myotorso
 from trunk_drake.model.osim import load_osim_spec
 from trunk_drake.model.osim_kinematics import OsimKinematics
 from trunk_drake.model.paths import MusclePaths, PathLayout, PathPoints, PathState
-from trunk_drake.model.plant import DOFS, Coordinate, build_plant
+from trunk_drake.model.plant import DOFS, LEVELS, Coordinate, build_plant
 from trunk_drake.model.spec import ModelSpec
 
 
@@ -27,7 +28,10 @@ class TrunkModel:
     """A finalized plant with named coordinates and vectorised muscle path kinematics.
 
     Build it with `load_model`. `path_state(q, v)` evaluates all 210 muscle paths at once;
-    every system and optimiser uses it (the diagram its unchecked form `path_state_from_q`).
+    every system and optimiser uses it (the diagram its unchecked form `path_state_from_q`). In the
+    ``"rhythm"`` configuration the plant is a `CoupledPlant`: `joint_info` lists the joints it couples
+    and `coupling` maps the coordinates onto them (``q_joints = coupling @ q``); otherwise the joints
+    are the coordinates and `coupling` is None.
     """
 
     spec: ModelSpec
@@ -36,6 +40,8 @@ class TrunkModel:
     pelvis_mass: float | None
     plant: object
     coordinate_info: list[Coordinate]
+    joint_info: list[Coordinate]
+    coupling: np.ndarray | None
     _paths: MusclePaths | OsimKinematics = field(repr=False)
     _context: object = field(repr=False)
     _kinematics: TreeKinematics | None = field(default=None, repr=False)  # compiled body kinematics (MyoTorso paths)
@@ -58,6 +64,25 @@ class TrunkModel:
     @property
     def n_muscles(self) -> int:
         return len(self.spec.muscles)
+
+    @property
+    def levels(self) -> list[str]:
+        """The intervertebral flexion-extension angles (where bushings act), root to tip."""
+        names = [c.name for c in self.joint_info]
+        return [f"{lvl}_FE" for lvl in LEVELS if f"{lvl}_FE" in names] or [c.name for c in self.joint_info if c.kind == "hinge"]
+
+    @property
+    def level_matrix(self) -> np.ndarray:
+        """(n_levels, n_coordinates): level angles = level_matrix @ q; its sum over levels is the lumbar rotation."""
+        names = [c.name for c in self.joint_info]
+        rows = np.eye(len(names))[[names.index(n) for n in self.levels]]
+        return rows if self.coupling is None else rows @ self.coupling
+
+    def posture(self, lumbar_flexion: float) -> np.ndarray:
+        """q with the given total lumbar flexion (rad, the sum of the level angles): shared equally by
+        independent levels, along the rhythm when coupled (the least-norm q); other coordinates 0."""
+        s = self.level_matrix.sum(axis=0)
+        return s * (float(lumbar_flexion) / (s @ s))
 
     @property
     def load_options(self) -> dict:
@@ -109,7 +134,16 @@ class TrunkModel:
         if isinstance(self._paths, OsimKinematics):
             return self._paths.path_state(R, p, self.plant.GetPositions(context), self._joint_frames(), v)
         axes, origins = self._joint_frames()(R, p)
-        return self._paths.compute(R, p, axes, origins, v)
+        return self._joint_paths(R, p, axes, origins, v)
+
+    def _joint_paths(self, R, p, axes, origins, v) -> PathState:
+        """MyoTorso path kinematics from the joints' frames, moment arms and velocities in the coordinates
+        (through `coupling` in the rhythm: -dL/dq = -(dL/dq_joints) G, v_joints = G v)."""
+        if self.coupling is None:
+            return self._paths.compute(R, p, axes, origins, v)
+        state = self._paths.compute(R, p, axes, origins, None if v is None else self.coupling @ np.asarray(v, float))
+        state.moment_arms = state.moment_arms @ self.coupling
+        return state
 
     def _joint_frames(self):
         """Function of body poses (R, p) giving the world axis and a point of every coordinate's joint."""
@@ -166,8 +200,8 @@ class TrunkModel:
         """`path_state` without input checks (the per-step path: q and v float arrays of the right size);
         compiled body kinematics where the model has them, else the plant's poses."""
         if self._kinematics is not None:
-            R, p, axes, origins = self._kinematics.frames(q)
-            return self._paths.compute(R, p, axes, origins, v)
+            R, p, axes, origins = self._kinematics.frames(q if self.coupling is None else self.coupling @ q)
+            return self._joint_paths(R, p, axes, origins, v)
         self.plant.SetPositions(self._context, q)
         return self.path_state_from_context(self._context, v)
 
@@ -175,7 +209,9 @@ class TrunkModel:
         """``M J_com^T d`` at q (unchecked): the generalized force of a unit acceleration field along
         world direction d, negated."""
         if self._kinematics is not None:
-            return self._kinematics.mass_weighted_com_jacobian(q, direction)
+            if self.coupling is None:
+                return self._kinematics.mass_weighted_com_jacobian(q, direction)
+            return self.coupling.T @ self._kinematics.mass_weighted_com_jacobian(self.coupling @ q, direction)
         plant, world = self.plant, self.plant.world_frame()
         plant.SetPositions(self._context, q)
         J = plant.CalcJacobianCenterOfMassTranslationalVelocity(self._context, JacobianWrtVariable.kV, world, world)
@@ -234,11 +270,11 @@ class TrunkModel:
         return self.path_state(q, v).velocities
 
     # ---- set-up --------------------------------------------------------------------
-    def _init_joints(self):
-        """Per coordinate: the body carrying its child frame, axis and anchor in that body."""
+    def _init_joints(self, plant):
+        """Per joint of `plant` (the MultibodyPlant): the body carrying its child frame, axis and anchor in that body."""
         body, axis, anchor = [], [], []
-        for c in self.coordinate_info:
-            joint = self.plant.GetJointByName(c.name)
+        for c in self.joint_info:
+            joint = plant.GetJointByName(c.name)
             frame = joint.frame_on_child()
             X_BM = frame.GetFixedPoseInBodyFrame()
             axis_M = joint.revolute_axis() if c.kind == "hinge" else joint.translation_axis()
@@ -253,22 +289,25 @@ class TrunkModel:
 
 def _build(spec: ModelSpec, dofs: str, pelvis_mass: float | None, pelvis_free: bool) -> TrunkModel:
     plant, coords = build_plant(spec, dofs, pelvis_mass=pelvis_mass, pelvis_free=pelvis_free)
-    n_bodies = plant.num_bodies()
-    moves = np.zeros((n_bodies, len(coords)))
-    for k, c in enumerate(coords):
-        joint = plant.GetJointByName(c.name)
-        for b in plant.GetBodiesKinematicallyAffectedBy([JointIndex(int(joint.index()))]):
+    coupled = isinstance(plant, CoupledPlant)
+    bodies, joints = (plant.full, plant.joints) if coupled else (plant, coords)
+    n_bodies = bodies.num_bodies()
+    moves = np.zeros((n_bodies, len(joints)))
+    for k, c in enumerate(joints):
+        joint = bodies.GetJointByName(c.name)
+        for b in bodies.GetBodiesKinematicallyAffectedBy([JointIndex(int(joint.index()))]):
             moves[int(b), k] = 1.0
-    names = [plant.get_body(BodyIndex(i)).name() for i in range(n_bodies)]
+    names = [bodies.get_body(BodyIndex(i)).name() for i in range(n_bodies)]
     kinematics = None
     if spec.path_semantics == "opensim":
         paths = OsimKinematics(spec, coords, names, moves)
     else:
-        paths = MusclePaths(spec, names, [c.kind for c in coords], moves)
-        kinematics = TreeKinematics(plant, [c.name for c in coords])
+        paths = MusclePaths(spec, names, [c.kind for c in joints], moves)
+        kinematics = TreeKinematics(bodies, [c.name for c in joints])
     model = TrunkModel(spec=spec, dofs=dofs, pelvis_free=pelvis_free, pelvis_mass=pelvis_mass, plant=plant, coordinate_info=coords,
-                       _paths=paths, _context=plant.CreateDefaultContext(), _kinematics=kinematics)
-    model._init_joints()
+                       joint_info=joints, coupling=plant.coupling if coupled else None, _paths=paths,
+                       _context=plant.CreateDefaultContext(), _kinematics=kinematics)
+    model._init_joints(bodies)
     return model
 
 
@@ -294,7 +333,7 @@ def model_source(path: str | Path | None):
 
 def load_model(model: str | Path | None = None, dofs: str | None = None, spec: ModelSpec | None = None,
                pelvis_mass: float | None = None, pelvis_free: bool = True, passenger: Passenger | None = None) -> TrunkModel:
-    """A trunk model in configuration `dofs` ("sagittal", "spine3d" or "all"; default "sagittal").
+    """A trunk model in configuration `dofs` ("sagittal", "spine3d", "rhythm" or "all"; default "sagittal").
 
     `model`: None or "myotorso" for the default MyoTorso model (None: $TRUNK_DRAKE_MODEL if set,
     see `model_source`), or the path of an OpenSim ``.osim`` file (read by
