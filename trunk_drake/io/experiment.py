@@ -72,9 +72,13 @@ def _apply_conditions(experiment: Experiment, path: Path) -> None:
     if table is None:
         raise ValueError(f"{path} has no [conditions] table")
     options = {}
-    for key in ("stiffness", "damping", "l_desired", "tendon", "pelvis"):
+    for key in ("stiffness", "damping", "l_desired", "reflex_delay", "tendon", "pelvis"):
         if key in table:
             options[key] = table[key]
+    if table.get("srs"):
+        from trunk_drake.muscle.short_range import ShortRangeStiffness
+
+        options["srs"] = ShortRangeStiffness.from_reference()
     if "feedforward_file" in table:
         ff_path = path.parent / table["feedforward_file"]
         options["feedforward"] = np.loadtxt(ff_path, delimiter=",", skiprows=1, usecols=1)
