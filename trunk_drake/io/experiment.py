@@ -38,6 +38,15 @@ class Experiment:
 
         return load_preset(self.preset).model(dofs)
 
+    def preset_gains(self) -> dict | None:
+        """The reflex gains of the data's preset (the fit's natural start); None without a preset or its reflexes."""
+        if self.preset is None:
+            return None
+        from trunk_drake.presets import load_preset
+
+        preset = load_preset(self.preset)
+        return preset.gains() if preset.reflex_gains is not None else None
+
 
 def load_experiment(paths, conditions: str | None = None) -> Experiment:
     """Trials from files and/or folders (every .csv/.sto/.mot inside), and the conditions from
