@@ -1,12 +1,10 @@
 """Reflex-gain fitting on the synthetic reference data (models/reference, a known truth)."""
 
 import tomllib
-import warnings
 
 import numpy as np
 import pytest
 
-import trunk_drake as td
 from trunk_drake.data import models_dir
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.io.experiment import load_experiment
@@ -15,13 +13,13 @@ from trunk_drake.optim.fit import (
 )
 
 REFERENCE = models_dir() / "reference"
-FITTED = ("sacrospinalis", "external_oblique")  # kp: not engaged (infinite SD) / identifiable; kv: identifiable
+FITTED = ("sacrospinalis", "external_oblique")  # kp and kv of both identifiable on the rhythm (benchmarks/results/fit.json)
 
 
 @pytest.fixture(scope="module")
 def setting():
-    model = td.load_model("sagittal")
     experiment = load_experiment([REFERENCE / "trial_1hz_a.csv"], REFERENCE / "conditions.toml")
+    model = experiment.model()  # the data's model: the default passenger (lumbar rhythm)
     truth = tomllib.loads((REFERENCE / "truth.toml").read_text())
     targets = targets_from_trials(experiment.trials, ("lumbar_rotation", "L5_S1_FE", "L4_L5_FE", "L3_L4_FE", "L2_L3_FE", "L1_L2_FE"),
                                   experiment.noise_rad, t_max=12.0)
@@ -34,7 +32,24 @@ def test_cost_at_truth_is_the_noise_floor(setting):
     r, engaged = Objective(model, targets, layout, options)(layout.vector(truth))
     expected = 0.5 * r.size  # chi-square: one per sample and output at the truth
     assert abs(0.5 * r @ r - expected) < 0.1 * expected
-    assert engaged.any() and not engaged.all(), "some groups' length reflexes never engage at rest"
+    assert engaged.all(), "with the set point at the neutral length every length reflex is at its threshold at rest"
+
+
+def test_only_groups_that_move_the_rhythm_are_identifiable(setting):
+    """Doubling the external obliques' kv changes the chi-square by many SDs; doubling both psoas gains by less than
+    one (0.5 in cost): one lumbar flexion angle cannot determine the psoas' reflexes."""
+    model, options, targets, truth = setting
+    layout = GainLayout(tuple(model.groups))
+    objective = Objective(model, targets, layout, options)
+    x = layout.vector(truth)
+
+    def cost(changes):
+        r, _ = objective(x + np.log10(2.0) * np.isin(layout.names, changes))
+        return 0.5 * r @ r
+
+    at_truth = cost([])
+    assert cost(["kv.external_oblique"]) - at_truth > 50.0
+    assert abs(cost(["kp.psoas_major", "kv.psoas_major"]) - at_truth) < 0.5
 
 
 def test_fit_recovers_truth_from_three_starts(setting):
@@ -49,8 +64,7 @@ def test_fit_recovers_truth_from_three_starts(setting):
         for group in FITTED:
             value, sd = result.gains[kind][group], result.std[kind][group]
             assert abs(value - truth[kind][group]) <= 2 * sd, f"{kind}.{group}: {value:.4f} +- {sd:.4f} vs {truth[kind][group]}"
-    assert np.isinf(result.std["kp"]["sacrospinalis"]), "a length reflex that never engages is not identifiable"
-    assert np.isfinite(result.std["kv"]["sacrospinalis"]) and result.std["kv"]["sacrospinalis"] < 0.5 * truth["kv"]["sacrospinalis"]
+            assert sd < 0.5 * truth[kind][group], f"{kind}.{group} is identifiable: SD {sd:.4f} vs {truth[kind][group]}"
     assert result.vaf[targets[0].name]["lumbar_rotation"] > 0.95
     assert result.n_simulations == len(targets) * (len(result.history) + 1)  # + the final goodness-of-fit run
 

@@ -38,6 +38,10 @@ from trunk_drake.simulation import SimulationError, simulate
 # the default passenger (thesis Table 4.3 x 9 = 0.1-6.3, with the set point at the neutral fiber length). The
 # thesis' upper bound of 1 belongs to its set point at the optimal fiber length and would cut those gains off.
 GAIN_BOUNDS = (0.001, 30.0)
+# Stop when an accepted step lowers the cost by less than this fraction. The cost is a chi-square/2 of about half
+# the number of samples at the noise floor (14406 for the two reference trials), and one SD of a gain moves it by
+# 0.5: 1e-3 stopped 14 cost units (several SD) short of the minimum; 1e-5 stops within 0.15.
+FIT_TOLERANCE = 1e-5
 THESIS_START = {"car": 0.1, "settling": 0.001}  # seed Tables 4.2-4.3: initial values (mostly)
 OUTPUT_NAMES = ("lumbar_rotation", "L5_S1_FE", "L4_L5_FE", "L3_L4_FE", "L2_L3_FE", "L1_L2_FE")
 
@@ -232,7 +236,7 @@ def start_points(layout: GainLayout, scenario: str, n_starts: int, seed: int = 0
 def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, fixed_gains: dict | None = None, scenario: str = "car",
                      options: TrunkOptions | None = None,
                      start=None, n_starts: int = 1, workers: int = 2, max_iterations: int = 20, fd_step: float = 0.05,
-                     tolerance: float = 1e-3, accuracy: float = 1e-2, seed: int = 0, progress: bool = True) -> FitResult:
+                     tolerance: float = FIT_TOLERANCE, accuracy: float = 1e-2, seed: int = 0, progress: bool = True) -> FitResult:
     """Fit kp and kv of each muscle group to `targets` (see targets_from_trials / settling_target).
 
     `options` fixes everything else of the diagram (co-activation, bushings, pelvis mode);
