@@ -132,7 +132,7 @@ class GainLayout:
 class Objective:
     """Weighted residuals of all targets for one gain vector (runs the simulations)."""
 
-    def __init__(self, model, targets: list[FitTarget], layout: GainLayout, options: TrunkOptions, accuracy: float = 1e-2):
+    def __init__(self, model, targets: list[FitTarget], layout: GainLayout, options: TrunkOptions, accuracy: float | None = None):
         self.model, self.targets, self.layout, self.options, self.accuracy = model, targets, layout, options, accuracy
 
     def simulate(self, x, target: FitTarget):
@@ -236,7 +236,7 @@ def start_points(layout: GainLayout, scenario: str, n_starts: int, seed: int = 0
 def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, fixed_gains: dict | None = None, scenario: str = "car",
                      options: TrunkOptions | None = None,
                      start=None, n_starts: int = 1, workers: int = 2, max_iterations: int = 20, fd_step: float = 0.05,
-                     tolerance: float = FIT_TOLERANCE, accuracy: float = 1e-2, seed: int = 0, progress: bool = True) -> FitResult:
+                     tolerance: float = FIT_TOLERANCE, accuracy: float | None = None, seed: int = 0, progress: bool = True) -> FitResult:
     """Fit kp and kv of each muscle group to `targets` (see targets_from_trials / settling_target).
 
     `options` fixes everything else of the diagram (co-activation, bushings, pelvis mode);
@@ -244,7 +244,8 @@ def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, fixed_gain
     Bounded secant Levenberg-Marquardt (see the module docstring) with a parallel
     forward-difference Jacobian (`fd_step` in log10 units); `n_starts` starts (multi-start),
     the best kept. Each start stops when an accepted step lowers the cost by less than
-    `tolerance` (relative) or after `max_iterations`.
+    `tolerance` (relative) or after `max_iterations`. `accuracy`: the simulations' (None: the
+    default integrator's, see `simulate`).
     """
     if scenario not in THESIS_START:
         raise ValueError(f"scenario={scenario!r}; expected one of {sorted(THESIS_START)}")
