@@ -14,7 +14,7 @@ import numpy as np
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Adder, ConstantVectorSource, VectorLogSink
 
-from trunk_drake.model.plant import LEVELS
+from trunk_drake.model.levels import LEVELS
 from trunk_drake.muscle.thelen import ThelenConstants
 from trunk_drake.systems.bushing import DEFAULT_DAMPING, DEFAULT_STIFFNESS, IntervertebralBushings
 from trunk_drake.systems.delay import TransportDelay
