@@ -76,7 +76,7 @@ def truth_options(nominal: TrunkOptions, case: Case) -> TrunkOptions:
     perturbed = {k: {g: float(np.clip(v * np.exp(rng.normal(0.0, GAIN_SPREAD)), 1e-3, 1.0)) for g, v in getattr(nominal, k).items()}
                  for k in ("kp", "kv")}
     truth = dataclasses.replace(nominal, **perturbed)
-    return effect(case.effect).apply_options(truth, case.values) if case.effect else truth
+    return effect(case.effect).apply(truth, case.values) if case.effect else truth
 
 
 def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, out_dir: Path, workers: int) -> dict:

@@ -12,7 +12,13 @@ of its own excitation), so every frequency needs only a 5x5 (6x6 with a seat) so
 Kinks are linearised by central differences or their describing function for small
 symmetric oscillation: (v)+ of the velocity reflex and each side of the trunk-in-space
 feedback count half, the activation rate is the mean of the activating and deactivating
-rates, excitations at their lower bound pass only half of a two-sided (Golgi) signal.
+rates, excitations at their lower bound pass only half of a two-sided (Golgi) signal. The
+stiffening bushing law M = -k (dq + c dq^3) is linearised statistically over the operating
+range: 3 c E[dq^2] dq for a Gaussian-like signal about the rest angle.
+
+The frequency response takes the same `TrunkOptions` as the diagram: the loops and the
+candidate effects are read from them, so an effect switched on in the options is switched on
+in the linear model too (options the linearisation cannot follow raise an error).
 """
 
 from __future__ import annotations
@@ -23,7 +29,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from trunk_drake.diagram import EXTENSOR_GROUPS, FLEXOR_GROUPS, TrunkOptions, _group_mask, build_trunk_diagram
+from trunk_drake.model.levels import LUMBAR_LEVELS
 from trunk_drake.muscle import thelen
+from trunk_drake.optim.least_squares import finite_difference_jacobian
 from trunk_drake.systems.muscles import muscle_parameters
 
 
@@ -40,20 +48,32 @@ class ConstantAcceleration:
 
 
 @dataclass
-class LinearParams:
-    """Parameters of the closed loops and candidate effects (arrays over muscles/levels)."""
+class OperatingPoint:
+    """Where the diagram is linearised: mean lumbar posture q (rad, per level), activations a and
+    excitations u (per muscle), and the RMS angle of each level about the bushings' rest angle
+    (offset included), the range over which amplitude-dependent laws are linearised."""
 
-    kp: np.ndarray
-    kv: np.ndarray
-    reflex_delay: float = 0.0
-    gto_gain: float = 0.0
-    vestibular_gain: float = 0.0
-    vestibular_delay: float = 0.0
-    activation_scale: float = 1.0
-    extra_damping: float = 0.0  # Nms/rad on every level
-    extra_stiffness: np.ndarray | float = 0.0  # Nm/rad per level (e.g. equivalent of a stiffening law)
-    seat_stiffness: float | None = None  # N/m; None: pelvis prescribed
-    seat_damping: float = 0.0
+    q: np.ndarray
+    a: np.ndarray
+    u: np.ndarray
+    amplitude: np.ndarray
+
+    @classmethod
+    def of(cls, result, window: slice) -> OperatingPoint:
+        """The operating point of a simulation (SimulationResult) over the samples `window`."""
+        levels = result.q[window][:, [result.coordinates.index(c) for c in LUMBAR_LEVELS]]
+        return cls(levels.mean(axis=0), result.activation[window].mean(axis=0), result.excitation[window].mean(axis=0),
+                   np.sqrt(np.mean(levels**2, axis=0)))
+
+    @classmethod
+    def mean(cls, points) -> OperatingPoint:
+        """The average of several operating points (e.g. one per trial)."""
+        return cls(*(np.mean([getattr(p, f.name) for p in points], axis=0) for f in dataclasses.fields(cls)))
+
+
+# TrunkOptions fields the linear model follows; every other field must equal the linearised options
+_FOLLOWED = {"kp", "kv", "reflex_delay", "gto_gain", "vestibular_gain", "vestibular_delay", "activation_scale",
+             "stiffness", "damping", "cubic", "pelvis", "seat_stiffness", "seat_damping", "pelvis_mass"}
 
 
 @dataclass
@@ -78,27 +98,30 @@ class LinearTrunk:
     headroom: np.ndarray  # (m,) 1, or 0.5 where the excitation sits at its lower bound
     extensors: np.ndarray
     flexors: np.ndarray
+    model: object  # the TrunkModel (per-group gains to per-muscle)
+    options: TrunkOptions  # the options linearised
+    op: OperatingPoint
 
-    def frf(self, freqs, p: LinearParams) -> np.ndarray:
-        """Rotation per platform displacement (rad/m) at `freqs` (Hz): (n_f, 6) complex,
-        columns total lumbar rotation then L5_S1 ... L1_L2."""
+    def frf(self, freqs, options: TrunkOptions) -> np.ndarray:
+        """Rotation per platform displacement (rad/m) at `freqs` (Hz) of the diagram with
+        `options`: (n_f, 6) complex, columns total lumbar rotation then L5_S1 ... L1_L2."""
+        self._check(options)
         freqs = np.atleast_1d(np.asarray(freqs, float))
         n = len(self.coordinates)
         out = np.empty((freqs.size, 1 + self.fe.size), dtype=complex)
         select = np.zeros(n)
         select[self.fe] = 1.0
         dvdq, dvdv = self.dvdq.copy(), self.dvdv.copy()
-        k_extra = np.broadcast_to(np.asarray(p.extra_stiffness, float), (self.fe.size,))
-        dvdq[:, self.fe] -= self.m_inv[:, self.fe] * k_extra
-        dvdv[:, self.fe] -= self.m_inv[:, self.fe] * p.extra_damping
-        rate = self.rate / p.activation_scale
-        stretch_q = (p.kp * self.stretch_active)[:, None] * self.dln_dq
-        stretch_v = (0.5 * p.kv)[:, None] * self.dvn_dv
-        gto = p.gto_gain * self.headroom
-        vest = (0.5 * p.vestibular_gain * (self.extensors - self.flexors))[:, None] * select[None, :]
+        dvdq[:, self.fe] -= self.m_inv[:, self.fe] * (self._bushing_stiffness(options) - self._bushing_stiffness(self.options))
+        dvdv[:, self.fe] -= self.m_inv[:, self.fe] * (_per_level(options.damping) - _per_level(self.options.damping))
+        rate = self.rate / options.activation_scale
+        stretch_q = (options.per_muscle(self.model, options.kp) * self.stretch_active)[:, None] * self.dln_dq
+        stretch_v = (0.5 * options.per_muscle(self.model, options.kv))[:, None] * self.dvn_dv
+        gto = options.gto_gain * self.headroom
+        vest = (0.5 * options.vestibular_gain * (self.extensors - self.flexors))[:, None] * select[None, :]
         for i, f in enumerate(freqs):
             s = 2j * np.pi * f
-            er, ev = np.exp(-s * p.reflex_delay), np.exp(-s * p.vestibular_delay)
+            er, ev = np.exp(-s * options.reflex_delay), np.exp(-s * options.vestibular_delay)
             k_q = er * (stretch_q - gto[:, None] * self.df_dq) + ev * vest
             k_v = er * (stretch_v - gto[:, None] * self.df_dv)
             k_a = -er * gto * self.df_da
@@ -107,8 +130,8 @@ class LinearTrunk:
             aq = dvdq + self.dvda @ (w[:, None] * k_q)
             av = dvdv + self.dvda @ (w[:, None] * k_v)
             Z = s * s * np.eye(n) - s * av - aq
-            if p.seat_stiffness is not None:
-                spring = self.m_inv[:, self.pelvis] * (p.seat_stiffness + s * p.seat_damping)
+            if self.pelvis is not None:
+                spring = self.m_inv[:, self.pelvis] * (options.seat_stiffness + s * options.seat_damping)
                 Z[:, self.pelvis] += spring
                 rhs = spring
             else:
@@ -118,11 +141,35 @@ class LinearTrunk:
             out[i, 1:] = q[self.fe]
         return out
 
+    def _bushing_stiffness(self, options: TrunkOptions) -> np.ndarray:
+        """Per level: k (1 + 3 c E[dq^2]), the statistical linearisation of M = -k (dq + c dq^3)."""
+        return _per_level(options.stiffness) * (1.0 + 3.0 * options.cubic * self.op.amplitude**2)
 
-def linearize(model, options: TrunkOptions, q0, a0, u0, seat: bool = False, h: float = 1e-6) -> LinearTrunk:
+    def _check(self, options: TrunkOptions) -> None:
+        seat = options.pelvis == "seat"
+        if seat != (self.pelvis is not None):
+            raise ValueError(f"pelvis={options.pelvis!r} needs the linearisation "
+                             f"{'with' if seat else 'without'} the seat (linearize(..., seat={seat}))")
+        changed = [f.name for f in dataclasses.fields(TrunkOptions) if f.name not in _FOLLOWED
+                   and not _same(getattr(options, f.name), getattr(self.options, f.name))]
+        if changed:
+            raise ValueError(f"the linear model cannot follow a change of {', '.join(changed)}: linearise with these options")
+
+
+def _per_level(value) -> np.ndarray:
+    return np.broadcast_to(np.asarray(value, float), (len(LUMBAR_LEVELS),))
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return a is not None and b is not None and bool(np.array_equal(a, b))
+    return a == b
+
+
+def linearize(model, options: TrunkOptions, op: OperatingPoint, seat: bool = False, h: float = 1e-6) -> LinearTrunk:
     """Open-loop linearisation of `model` with the non-feedback parts of `options` at the
-    operating point: posture q0 (the model's lumbar FE coordinates), activations a0, excitations u0.
-    With ``seat=True`` the pelvis slides freely (for the pelvis-seat compliance candidate)."""
+    operating point `op`. With ``seat=True`` the pelvis slides freely (for pelvis="seat")."""
+    q0, a0, u0 = op.q, op.a, op.u
     open_loop = dataclasses.replace(options, kp=0.0, kv=0.0, gto_gain=0.0, vestibular_gain=0.0, reflex_delay=0.0,
                                     vestibular_delay=0.0, feedforward=np.asarray(u0, float),
                                     pelvis="force" if seat else "prescribed", pelvis_mass=_sacrum_mass(model))
@@ -139,11 +186,7 @@ def linearize(model, options: TrunkOptions, q0, a0, u0, seat: bool = False, h: f
         context.SetContinuousState(x)
         return td.diagram.EvalTimeDerivatives(context).CopyToVector()
 
-    jac = np.empty((x0.size, x0.size))
-    for j in range(x0.size):
-        dx = np.zeros_like(x0)
-        dx[j] = h
-        jac[:, j] = (f(x0 + dx) - f(x0 - dx)) / (2 * h)
+    jac = finite_difference_jacobian(lambda points: [f(x) for x in points], x0, h, central=True)
     vrows = slice(nq, 2 * nq)
     arows = slice(2 * nq, 2 * nq + n_m)
     b_acc = None
@@ -176,6 +219,7 @@ def linearize(model, options: TrunkOptions, q0, a0, u0, seat: bool = False, h: f
         df_da=deriv.d_activation / f_max, stretch_active=(kin.normalized_fiber_length > l_set).astype(float),
         headroom=np.where(u0 <= options.constants.minimum_activation * (1 + 1e-9), 0.5, 1.0),
         extensors=_group_mask(base, EXTENSOR_GROUPS), flexors=_group_mask(base, FLEXOR_GROUPS),
+        model=model, options=options, op=op,
     )
 
 
