@@ -15,7 +15,9 @@ from trunk_drake import reproduce as rp
 from trunk_drake.data import models_dir
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.io.experiment import load_experiment
-from trunk_drake.optim.fit import GAIN_BOUNDS, OUTPUT_NAMES, fit_reflex_gains, settling_target, targets_from_trials, write_fit
+from trunk_drake.io.trials import OUTPUT_NAMES
+from trunk_drake.optim.fit import fit_reflex_gains, settling_target, targets_from_trials, write_fit
+from trunk_drake.optim.gains import GAIN_BOUNDS
 
 TRIALS = ("trial_1hz_a.csv", "trial_1hz_b.csv")
 THESIS = {
@@ -179,4 +181,6 @@ def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, tria
 
 
 if __name__ == "__main__":
-    raise SystemExit(rp.script_main(__file__))
+    from trunk_drake.commands.reproduce import script_main
+
+    raise SystemExit(script_main(__file__))

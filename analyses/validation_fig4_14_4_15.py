@@ -143,4 +143,6 @@ def run(out_dir, model=None, workers=2, inputs=None, held_out=HELD_OUT):
 
 
 if __name__ == "__main__":
-    raise SystemExit(rp.script_main(__file__))
+    from trunk_drake.commands.reproduce import script_main
+
+    raise SystemExit(script_main(__file__))

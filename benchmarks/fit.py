@@ -18,7 +18,8 @@ import trunk_drake as td
 from trunk_drake.data import models_dir
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.io.experiment import load_experiment
-from trunk_drake.optim.fit import OUTPUT_NAMES, fit_reflex_gains, targets_from_trials
+from trunk_drake.io.trials import OUTPUT_NAMES
+from trunk_drake.optim.fit import fit_reflex_gains, targets_from_trials
 from trunk_drake.optim.gains import GainLayout
 
 

@@ -31,3 +31,16 @@ def test_bad_input_exits_with_a_message(tmp_path, capsys):
     bad.write_text("[kp]\nsacrospinalis = 0.1\n")
     assert main(["simulate", "--duration", "1", "--reflex-gains", str(bad), "--out", str(tmp_path)]) == 2
     assert "kv" in capsys.readouterr().err
+
+
+def test_stability_answers_with_json_and_plots(tmp_path, capsys):
+    assert main(["stability", "--no-critical", "--srs", "--out", str(tmp_path), "--json"]) == 0
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out)
+    assert isinstance(summary["stable"], bool) and summary["dynamic"]["margin_per_s"] is not None
+    assert set(summary["static"]["terms_along_least_stable_mode_nm_per_rad"]) >= {"gravity", "bushings", "short_range"}
+    for name in ("stability.json", "stability_roots.png", "stability_mode.png"):
+        assert (tmp_path / name).exists(), name
+    assert "Traceback" not in captured.err and all(line.startswith("warning: ") for line in captured.err.splitlines())
+    assert main(["stability", "--l-desired", "long", "--no-critical"]) == 2
+    assert "--l-desired 'long'" in capsys.readouterr().err

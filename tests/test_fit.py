@@ -9,7 +9,8 @@ import trunk_drake as td
 from trunk_drake.data import models_dir
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.io.experiment import load_experiment
-from trunk_drake.optim.fit import OUTPUT_NAMES, Objective, fit_reflex_gains, settling_target, targets_from_trials, write_fit
+from trunk_drake.io.trials import OUTPUT_NAMES
+from trunk_drake.optim.fit import Objective, fit_reflex_gains, settling_target, targets_from_trials, write_fit
 from trunk_drake.optim.gains import GainLayout
 from trunk_drake.simulation import load_reflex_gains
 

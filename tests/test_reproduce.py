@@ -8,6 +8,7 @@ import pytest
 import trunk_drake as td
 from trunk_drake import reproduce as rp
 from trunk_drake.cli import build_parser
+from trunk_drake.commands import reproduce as reproduce_command
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +55,7 @@ def test_sweep_records_divergence_and_goes_on(sagittal):
 
 def test_cli_and_registry():
     args = build_parser().parse_args(["reproduce", "--out", "x", "--only", "validation_fig4_14_4_15"])
-    assert args.func is rp._cmd_reproduce
+    assert args.func is reproduce_command.run
     assert rp._with_requirements(["validation_fig4_14_4_15"]) == ["fitted_gains_tables4_2_4_3", "validation_fig4_14_4_15"]
     assert all((rp.ANALYSES_DIR / f"{e.name}.py").exists() for e in rp.EXPERIMENTS)
     with pytest.raises(ValueError, match="unknown experiment"):

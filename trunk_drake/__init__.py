@@ -2,6 +2,7 @@
 
 from trunk_drake.model.trunk_model import TrunkModel, load_model
 from trunk_drake.optim.fit import fit_reflex_gains
+from trunk_drake.optim.stability import StabilityResult, stability
 from trunk_drake.optim.static import coactivation, static_optimization
 from trunk_drake.optim.strength import isometric_strength
 from trunk_drake.simulation import SimulationResult, simulate
@@ -15,5 +16,7 @@ __all__ = [
     "coactivation",
     "isometric_strength",
     "fit_reflex_gains",
+    "stability",
+    "StabilityResult",
 ]
 

@@ -227,34 +227,3 @@ def _run_dask(pending, record, address) -> None:
                 case = cases[future.key]
                 record({"case_id": case["case_id"], "params": {k: v for k, v in case.items() if k != "case_id"},
                         "status": "error", "error": f"worker lost: {type(err).__name__}: {err}"})
-
-
-# ------------------------------------------------------------------------------- CLI
-
-def add_batch_command(sub) -> None:
-    """`trunk-drake strength-batch GRID.toml --out DIR [--cluster ADDRESS] [--workers N]`."""
-    p = sub.add_parser("strength-batch", help="isometric strength over a grid of cases (parallel, resumable)")
-    p.add_argument("grid", help="grid file (TOML), e.g. models/strength_grid_example.toml")
-    p.add_argument("--out", required=True, help="output folder (results.jsonl, results.csv); rerun to resume")
-    p.add_argument("--cluster", default=None, metavar="ADDRESS", help="Dask scheduler address, e.g. tcp://host:8786")
-    p.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
-    p.add_argument("--retry-failed", action="store_true", help="rerun cases recorded as failed")
-    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    p.set_defaults(func=_cmd_batch)
-
-
-def _cmd_batch(args) -> int:
-    from trunk_drake.cli import print_json
-
-    cases = load_grid(args.grid)
-    try:
-        counts = run_batch(cases, args.out, cluster=args.cluster, workers=args.workers,
-                           progress=not args.no_progress, retry_failed=args.retry_failed)
-    except KeyboardInterrupt:
-        print(f"interrupted; finished cases are in {Path(args.out) / RESULTS}; rerun the same command to resume")
-        return 130
-    except RuntimeError as err:
-        print(f"trunk-drake strength-batch: error: {err}")
-        return 1
-    print_json(counts)
-    return 0

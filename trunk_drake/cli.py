@@ -1,38 +1,21 @@
 """Command line: `trunk-drake <command> ...` (see `trunk-drake --help`).
 
-Each room of the package contributes its commands: a module listed in COMMAND_MODULES
-defines ``add_commands(subparsers)``, whose sub-parsers set ``func(args) -> exit code``.
+The commands are the modules of `trunk_drake.commands` (one module per command).
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib
-import json
 import sys
 
-from trunk_drake.metadata import json_default
-
-COMMAND_MODULES = (
-    "trunk_drake.model.info",
-    "trunk_drake.simulation",
-    "trunk_drake.optim.fit",
-    "trunk_drake.gap.commands",
-    "trunk_drake.optim.strength",
-    "trunk_drake.reproduce",
-)
-
-
-def print_json(data) -> None:
-    """Print `data` as indented JSON (numpy arrays and scalars allowed)."""
-    print(json.dumps(data, indent=2, default=json_default))
+from trunk_drake.commands import command_modules
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="trunk-drake", description="Neuromusculoskeletal lumbar-spine simulation on Drake.")
     sub = parser.add_subparsers(dest="command", required=True)
-    for name in COMMAND_MODULES:
-        importlib.import_module(name).add_commands(sub)
+    for module in command_modules():
+        module.add_command(sub)
     return parser
 
 

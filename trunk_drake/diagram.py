@@ -15,6 +15,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Adder, ConstantVectorSource, VectorLogSink
 
 from trunk_drake.model.levels import LEVELS
+from trunk_drake.muscle.short_range import ShortRangeStiffness
 from trunk_drake.muscle.thelen import ThelenConstants
 from trunk_drake.systems.bushing import DEFAULT_DAMPING, DEFAULT_STIFFNESS, IntervertebralBushings
 from trunk_drake.systems.delay import TransportDelay
@@ -53,6 +54,7 @@ class TrunkOptions:
     activation_scale: float = 1.0  # multiplies both activation time constants (slower excitation-activation)
     strength_scale: float = 1.0
     muscle_mask: np.ndarray | None = None  # 0/1 per muscle: which muscles act (Table 4.1 study)
+    srs: ShortRangeStiffness | None = None  # short-range stiffness of active muscle; None: off
     constants: ThelenConstants = field(default_factory=ThelenConstants)
 
     def per_muscle(self, model, value) -> np.ndarray:
@@ -139,7 +141,8 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
             raise ValueError(f"activation_scale must be > 0, got {opts.activation_scale}")
         constants = replace(constants, activation_time_constant=constants.activation_time_constant * opts.activation_scale,
                             deactivation_time_constant=constants.deactivation_time_constant * opts.activation_scale)
-    muscles = builder.AddNamedSystem("muscles", MuscleSystem(base, constants, opts.tendon, params, mask=opts.muscle_mask))
+    muscles = builder.AddNamedSystem("muscles", MuscleSystem(base, constants, opts.tendon, params, mask=opts.muscle_mask,
+                                                                srs=opts.srs))
     reflex = builder.AddNamedSystem(
         "stretch_reflex", StretchReflex(n, opts.per_muscle(base, opts.kp), opts.per_muscle(base, opts.kv), _desired_length(base, opts, params))
     )

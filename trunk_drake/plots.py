@@ -92,8 +92,49 @@ def plot_fit(result, out_dir) -> dict:
     ax.set_xlabel("evaluated gain sets")
     ax.set_ylabel("best cost so far")
     ax.legend(fontsize=8)
+    files["convergence_plot"] = save(fig, out / "fit_convergence.png")
+    return files
+
+
+def save(fig, path) -> Path:
+    """Lay out, write (110 dpi) and close a figure; returns its path."""
     fig.tight_layout()
-    files["convergence_plot"] = out / "fit_convergence.png"
-    fig.savefig(files["convergence_plot"], dpi=110)
+    fig.savefig(path, dpi=110)
     plt.close(fig)
+    return Path(path)
+
+
+def plot_stability(result, out_dir) -> dict:
+    """Eigenvalue map (characteristic roots, the one-sided branches of a real mode) and the
+    least-stable mode shapes (static and dynamic) over the model's coordinates."""
+    out = Path(out_dir)
+    files = {}
+    dyn = result.dynamic
+    if dyn is not None:
+        fig, ax = plt.subplots(figsize=(6.5, 4.5))
+        roots = dyn.roots[np.isfinite(dyn.roots)]
+        ax.plot(roots.real, roots.imag / (2 * np.pi), "x", color="0.4", label="roots (central linearisation)")
+        for k, (name, s) in enumerate(dyn.branches.items()):
+            ax.plot(s.real, s.imag / (2 * np.pi), "o", mfc="none", ms=9, color=f"C{k}", label=f"rightmost, {name}")
+        ax.axvline(0.0, color="k", lw=0.8)
+        span = max(5.0, 3 * abs(dyn.margin))
+        ax.set_xlim(-8 * span, 2 * span)
+        ax.set_xlabel("real part (1/s)")
+        ax.set_ylabel("imaginary part (Hz)")
+        ax.set_title(f"closed-loop roots: {'stable' if dyn.stable else 'unstable'}, margin {dyn.margin:+.3g} 1/s", fontsize=10)
+        ax.legend(fontsize=7)
+        files["roots_plot"] = save(fig, out / "stability_roots.png")
+    fig, ax = plt.subplots(figsize=(6.5, 3.8))
+    x = np.arange(len(result.coordinates))
+    shapes = {f"static (index {result.static.stability_index:+.0f} Nm/rad)": result.static.least_stable_mode}
+    if dyn is not None:
+        shapes[f"dynamic ({dyn.mode_branch}, {dyn.rightmost.real:+.3g} 1/s)"] = dyn.mode
+    width = 0.8 / len(shapes)
+    for k, (label, shape) in enumerate(shapes.items()):
+        ax.bar(x + (k - (len(shapes) - 1) / 2) * width, shape, width, label=label)
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.set_xticks(x, result.coordinates, rotation=45 if len(x) > 6 else 0, fontsize=8)
+    ax.set_ylabel("least-stable mode (largest = 1)")
+    ax.legend(fontsize=8)
+    files["mode_plot"] = save(fig, out / "stability_mode.png")
     return files

@@ -10,13 +10,11 @@ parameters travel), plotting and reference-value helpers, and the Markdown/JSON 
 
 from __future__ import annotations
 
-import argparse
 import datetime
 import importlib.util
 import json
 import os
 import re
-import sys
 import time
 import traceback
 import warnings
@@ -455,38 +453,3 @@ def run_experiments(out_dir, names=None, force: bool = False, workers: int = 2, 
     write_report(out, report)
     log(f"report: {out / REPORT_MD} ({report['run']['wall_time_s'] / 60:.1f} min)")
     return report
-
-
-def _arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", required=True, help="output folder (report.md, report.json, one folder per experiment)")
-    parser.add_argument("--workers", type=int, default=2, help="parallel processes for sweeps and fits (default 2)")
-    parser.add_argument("--force", action="store_true", help="recompute experiments already in report.json")
-
-
-def script_main(script: str) -> int:
-    """Entry point of an analyses/<name>.py script: run it (and what it requires) into --out."""
-    name = Path(script).stem
-    parser = argparse.ArgumentParser(description=f"{experiment(name).title}: run it and write report.md/.json into --out")
-    _arguments(parser)
-    args = parser.parse_args()
-    report = run_experiments(args.out, [name], force=args.force, workers=args.workers)
-    return 0 if report["experiments"][name]["status"] == "ok" else 1
-
-
-def add_commands(sub) -> None:
-    """`trunk-drake reproduce --out DIR [--only NAME ...] [--force] [--workers N]`."""
-    p = sub.add_parser("reproduce", help="run every thesis experiment (analyses/) and write a Markdown + PNG report",
-                       description="Runs the thesis' experiments on the default model (MyoTorso) and writes report.md "
-                                   "(thesis vs trunk-drake, side by side), report.json and the figures into --out.")
-    _arguments(p)
-    p.add_argument("--only", nargs="+", metavar="NAME", choices=[e.name for e in EXPERIMENTS],
-                   help="run only these experiments (and what they require)")
-    p.set_defaults(func=_cmd_reproduce)
-
-
-def _cmd_reproduce(args) -> int:
-    report = run_experiments(args.out, args.only, force=args.force, workers=args.workers)
-    failed = [n for n in report["run"]["selected"] if report["experiments"][n].get("status") != "ok"]
-    if failed:
-        print(f"trunk-drake: failed experiments: {', '.join(failed)} (see {Path(args.out) / REPORT_MD})", file=sys.stderr)
-    return 1 if failed else 0

@@ -199,16 +199,11 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
 
 def _set_initial_muscle_state(td: TrunkDiagram, root_context) -> None:
     """Start at rest: activations equal to the feed-forward excitation (no stretch at q = 0),
-    compliant fibers in static force equilibrium with their tendons."""
-    from trunk_drake.muscle import thelen
-
-    muscles, n = td.muscles, td.muscles.n
-    x0 = muscles.default_state
-    x0[:n] = np.clip(td.feedforward, td.options.constants.minimum_activation, 1.0)
-    if muscles.tendon == "compliant":
-        path = td.paths.GetOutputPort("path_state").Eval(td.paths.GetMyContextFromRoot(root_context))
-        x0[n:] = thelen.equilibrium_fiber_length(x0[:n], path.lengths, muscles.params, muscles.constants).fiber_length
-    muscles.GetMyMutableContextFromRoot(root_context).SetContinuousState(x0)
+    compliant fibers in static force equilibrium with their tendons (MuscleSystem.steady_state)."""
+    muscles = td.muscles
+    path = td.paths.GetOutputPort("path_state").Eval(td.paths.GetMyContextFromRoot(root_context))
+    activation = np.clip(td.feedforward, td.options.constants.minimum_activation, 1.0)
+    muscles.GetMyMutableContextFromRoot(root_context).SetContinuousState(muscles.steady_state(activation, path))
 
 
 def _perturbation(perturbation, bandwidth, seed, lowpass_hz=None):
@@ -301,60 +296,10 @@ def load_reflex_gains(path) -> dict[str, dict[str, float]]:
         data = data[name]
     missing = [k for k in ("kp", "kv") if k not in data]
     if missing:
-        raise ValueError(f"{p}{'#' + name if name else ''} lacks the {missing} table(s); expected [kp] and [kv] per muscle group")
+        sets = sorted(k for k, v in data.items() if isinstance(v, dict) and {"kp", "kv"} <= set(v))
+        hint = f"; it holds the sets {sets}: pick one with {p}#NAME" if sets and not name else ""
+        raise ValueError(f"{p}{'#' + name if name else ''} lacks the {missing} table(s); expected [kp] and [kv] per muscle group{hint}")
     return {"kp": dict(data["kp"]), "kv": dict(data["kv"])}
 
 
 DEFAULT_GAINS = "reflex_gains_thesis.toml#car_passenger"
-
-
-def add_commands(sub) -> None:
-    """`trunk-drake simulate ...`."""
-    p = sub.add_parser("simulate", help="forward-simulate a pelvis-perturbation trial",
-                       description="Simulate the seated trunk (210 muscles, stretch reflexes, bushings) under a "
-                                   "multisine pelvis perturbation; writes .sto, CSV, JSON and a PNG plot.")
-    p.add_argument("--duration", type=float, default=20.0, help="simulated seconds (default 20)")
-    p.add_argument("--bandwidth", type=float, default=1.0, help="highest perturbation frequency, Hz (1, 3 or 10)")
-    p.add_argument("--seed", type=int, default=0, help="multisine phase seed")
-    p.add_argument("--lowpass-hz", type=float, default=None, help="low-pass the perturbation (the thesis used 2 Hz)")
-    p.add_argument("--reflex-gains", default=None,
-                   help=f"TOML/JSON with [kp] and [kv] per group (FILE#set picks a set); default: models/{DEFAULT_GAINS}")
-    p.add_argument("--no-reflex", action="store_true", help="switch the stretch reflexes off")
-    p.add_argument("--tendon", choices=["rigid", "compliant"], default="rigid")
-    p.add_argument("--coactivation", type=float, default=0.02,
-                   help="minimum activation of the feed-forward co-activation (default 0.02, as the thesis)")
-    p.add_argument("--stiffness", type=float, default=125.0, help="bushing stiffness, Nm/rad (thesis final: 125)")
-    p.add_argument("--damping", type=float, default=7.5, help="bushing damping, Nms/rad")
-    p.add_argument("--pelvis", choices=["prescribed", "force"], default="prescribed",
-                   help="exact prescribed pelvis motion, or the thesis' 10,000 kg force-driven pelvis")
-    p.add_argument("--accuracy", type=float, default=DEFAULT_ACCURACY, help="integrator target accuracy")
-    p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--json", action="store_true", help="print a JSON summary")
-    p.add_argument("--progress", action="store_true", help="show a progress bar")
-    p.set_defaults(func=_cmd_simulate)
-
-
-def _cmd_simulate(args) -> int:
-    import json
-
-    from trunk_drake.data import models_dir
-    from trunk_drake.model.trunk_model import load_model
-    from trunk_drake.optim.static import coactivation
-
-    model = load_model("sagittal")
-    gains = {"kp": 0.0, "kv": 0.0} if args.no_reflex else load_reflex_gains(args.reflex_gains or models_dir() / DEFAULT_GAINS)
-    result = simulate(
-        model, duration=args.duration, bandwidth=args.bandwidth, seed=args.seed, lowpass_hz=args.lowpass_hz, tendon=args.tendon,
-        feedforward=coactivation(model, args.coactivation), stiffness=args.stiffness, damping=args.damping,
-        pelvis=args.pelvis, accuracy=args.accuracy, progress=args.progress, **gains,
-    )
-    files = result.write(args.out)
-    summary = {**result.summary(), "files": {k: str(v) for k, v in files.items()}}
-    if args.json:
-        print(json.dumps(summary, indent=2))
-    else:
-        print(f"simulated {summary['sim_time_s']:.1f} s in {summary['wall_time_s']:.2f} s "
-              f"(real-time factor {summary['real_time_factor']:.1f}, {summary['steps']} steps); results in {args.out}")
-        if summary["warning"]:
-            print(f"warning: {summary['warning']}")
-    return 0

@@ -183,10 +183,9 @@ def linearize(model, options: TrunkOptions, op: OperatingPoint, seat: bool = Fal
     context = td.diagram.CreateDefaultContext()
 
     def f(x):
-        context.SetContinuousState(x)
-        return td.diagram.EvalTimeDerivatives(context).CopyToVector()
+        return time_derivatives(td, context, x)
 
-    jac = finite_difference_jacobian(lambda points: [f(x) for x in points], x0, h, central=True)
+    jac = state_jacobian(td, x0, h, context)
     vrows = slice(nq, 2 * nq)
     arows = slice(2 * nq, 2 * nq + n_m)
     b_acc = None
@@ -221,6 +220,22 @@ def linearize(model, options: TrunkOptions, op: OperatingPoint, seat: bool = Fal
         extensors=_group_mask(base, EXTENSOR_GROUPS), flexors=_group_mask(base, FLEXOR_GROUPS),
         model=model, options=options, op=op,
     )
+
+
+def state_jacobian(td, x0, h: float = 1e-6, context=None) -> np.ndarray:
+    """Central-difference Jacobian of the built diagram's time derivatives at continuous state `x0`
+    (a kink, e.g. a one-sided reflex exactly at its threshold, gives the mean of its two slopes)."""
+    context = context or td.diagram.CreateDefaultContext()
+    x0 = np.asarray(x0, float)
+    jac = finite_difference_jacobian(lambda points: [time_derivatives(td, context, x) for x in points], x0, h, central=True)
+    context.SetContinuousState(x0)
+    return jac
+
+
+def time_derivatives(td, context, x) -> np.ndarray:
+    """The diagram's continuous-state time derivatives at state `x` (set into `context`)."""
+    context.SetContinuousState(x)
+    return td.diagram.EvalTimeDerivatives(context).CopyToVector()
 
 
 def _sacrum_mass(model) -> float:

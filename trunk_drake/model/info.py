@@ -73,21 +73,3 @@ def format_model_info(info: dict) -> str:
         + ("agrees (within 1 cm)" if ub["agrees_with_thesis"] else "does NOT agree: MyoTorso has no arms and a posterior lumped upper body"),
     ]
     return "\n".join(lines)
-
-
-def add_commands(sub) -> None:
-    """`trunk-drake model info [--dofs sagittal|spine3d] [--json]`."""
-    model = sub.add_parser("model", help="inspect the trunk model").add_subparsers(dest="model_command", required=True)
-    info = model.add_parser("info", help="coordinates, muscles per group, masses, upper-body centre of mass")
-    info.add_argument("--dofs", choices=["sagittal", "spine3d"], default="sagittal")
-    info.add_argument("--json", action="store_true", help="print JSON instead of text")
-    info.set_defaults(func=_cmd_info)
-
-
-def _cmd_info(args) -> int:
-    from trunk_drake.cli import print_json
-    from trunk_drake.model.trunk_model import load_model
-
-    info = model_info(load_model(dofs=args.dofs))
-    print_json(info) if args.json else print(format_model_info(info))
-    return 0

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from pydrake.multibody.tree import BodyIndex, JointIndex
 
+from trunk_drake.model.anthropometry import Passenger, with_passenger
 from trunk_drake.model.architecture import with_hill_parameters
 from trunk_drake.model.myotorso import read_myotorso
 from trunk_drake.model.paths import MusclePaths, PathState
@@ -154,12 +155,13 @@ def _body_index(i: int) -> BodyIndex:
 
 
 def load_model(dofs: str = "sagittal", spec: ModelSpec | None = None, pelvis_mass: float | None = None,
-               pelvis_free: bool = True) -> TrunkModel:
+               pelvis_free: bool = True, passenger: Passenger | None = None) -> TrunkModel:
     """The default MyoTorso trunk model in configuration `dofs` ("sagittal" or "spine3d").
 
     Hill fiber and tendon lengths are derived from the neutral-posture musculotendon lengths
     by Christophy et al.'s method unless `spec` already carries them. `pelvis_mass` replaces
     the sacrum's mass; ``pelvis_free=False`` welds the sagittal pelvis (no ``pelvis_tx``).
+    `passenger` adds the arms and the rest of the head to the thorax (model/anthropometry.py).
     """
     if dofs not in DOFS:
         raise ValueError(f"unknown configuration dofs={dofs!r}; expected one of {DOFS}")
@@ -168,4 +170,6 @@ def load_model(dofs: str = "sagittal", spec: ModelSpec | None = None, pelvis_mas
         geometric = _build(spec, "spine3d", None, False)
         neutral = geometric.path_state(np.zeros(len(geometric.coordinate_info))).lengths
         spec = with_hill_parameters(spec, neutral)
+    if passenger is not None:
+        spec = with_passenger(spec, passenger)
     return _build(spec, dofs, pelvis_mass, pelvis_free)

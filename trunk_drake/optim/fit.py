@@ -23,7 +23,6 @@ import numpy as np
 
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.io.prepared import PreparedTrial, prepare_trials
-from trunk_drake.io.trials import OUTPUT_NAMES
 from trunk_drake.metadata import json_default
 from trunk_drake.optim.gains import GAIN_BOUNDS, GainLayout
 from trunk_drake.optim.least_squares import finite_difference_jacobian, inverse_or_inf, levenberg_marquardt
@@ -298,61 +297,3 @@ def write_fit(result: FitResult, out_dir) -> dict:
     files["gains"].write_text("\n".join(lines) + "\n")
     files.update(plot_fit(result, out))
     return files
-
-
-def add_commands(sub) -> None:
-    """`trunk-drake fit DATA... --out DIR [--json]`."""
-    p = sub.add_parser("fit", help="fit stretch-reflex gains (kp, kv per muscle group) to measured trials",
-                       description="Levenberg-Marquardt fit of the reflex gains to trials (CSV/.sto/.mot or folders). "
-                                   "A conditions.toml beside the data sets the known conditions (bushings, co-activation, noise).")
-    p.add_argument("data", nargs="*", help="trial files or folders (e.g. models/reference); none for --scenario settling")
-    p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--scenario", choices=sorted(THESIS_START), default="car")
-    p.add_argument("--conditions", help="TOML with a [conditions] table (default: conditions.toml beside the data)")
-    p.add_argument("--outputs", choices=["total", "levels", "all"], default="all",
-                   help="fit the total lumbar rotation, the five level angles, or all (default; those present in the data)")
-    p.add_argument("--starts", type=int, default=1, help="number of starting points (multi-start)")
-    p.add_argument("--workers", type=int, default=2, help="parallel simulation processes")
-    p.add_argument("--max-iterations", type=int, default=20)
-    p.add_argument("--json", action="store_true", help="print a JSON summary")
-    p.set_defaults(func=_cmd_fit)
-
-
-def _cmd_fit(args) -> int:
-    import json
-
-    from trunk_drake.io.experiment import load_experiment
-    from trunk_drake.io.trials import available_outputs
-    from trunk_drake.model.trunk_model import load_model
-    from trunk_drake.optim.static import coactivation
-
-    model = load_model("sagittal")
-    names = {"total": ("lumbar_rotation",), "levels": OUTPUT_NAMES[1:], "all": OUTPUT_NAMES}[args.outputs]
-    if args.scenario == "settling":
-        targets = [settling_target()]
-        options = TrunkOptions(feedforward=coactivation(model, 0.02))
-    else:
-        if not args.data:
-            raise ValueError("the car scenario needs measured trials: trunk-drake fit DATA... --out DIR")
-        experiment = load_experiment(args.data, args.conditions)
-        present = available_outputs(experiment.trials)
-        names = tuple(n for n in names if n in present) or names
-        noise = experiment.noise_rad if experiment.noise_rad is not None else np.radians(0.1)
-        targets = targets_from_trials(experiment.trials, names, noise, period=experiment.period,
-                                      steady_start=experiment.fade)
-        opts = dict(experiment.options)
-        if "feedforward" not in opts:
-            opts["feedforward"] = coactivation(model, experiment.coactivation_min_activation or 0.02)
-        options = TrunkOptions(**opts)
-    result = fit_reflex_gains(model, targets, scenario=args.scenario, options=options, n_starts=args.starts,
-                              workers=args.workers, max_iterations=args.max_iterations, progress=not args.json)
-    files = write_fit(result, args.out)
-    summary = {"gains": result.gains, "std": result.std, "vaf": result.vaf, "cost": result.cost,
-               "n_simulations": result.n_simulations, "wall_time_s": result.wall_time_s,
-               "files": {k: str(v) for k, v in files.items()}}
-    if args.json:
-        print(json.dumps(summary, indent=2, default=json_default))
-    else:
-        print(f"fitted {len(result.parameter_names)} gains in {result.wall_time_s:.0f} s ({result.n_simulations} simulations); "
-              f"results in {args.out}")
-    return 0

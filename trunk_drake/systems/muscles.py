@@ -8,6 +8,7 @@ from pydrake.systems.framework import LeafSystem
 
 from trunk_drake.model.paths import PathState
 from trunk_drake.muscle import thelen
+from trunk_drake.muscle.short_range import ShortRangeStiffness
 from trunk_drake.muscle.thelen import MuscleParameters, ThelenConstants
 
 TENDON_MODES = ("rigid", "compliant")
@@ -38,13 +39,18 @@ class MuscleSystem(LeafSystem):
     ``normalized_fiber_velocity``, ``fiber_length`` (m), ``generalized_force``
     (moment arms^T tendon force, one entry per plant velocity). An optional 0/1 `mask`
     switches muscles off (their tendon force is zeroed), for studies that add groups one by one.
+    With `srs` (rigid tendons) the short-range stiffness force is added along every fiber and the
+    reference normalised fiber lengths it acts about are further states (muscle.short_range).
     """
 
     def __init__(self, model, constants: ThelenConstants | None = None, tendon: str = "rigid",
-                 params: MuscleParameters | None = None, mask=None):
+                 params: MuscleParameters | None = None, mask=None, srs: ShortRangeStiffness | None = None):
         super().__init__()
         if tendon not in TENDON_MODES:
             raise ValueError(f"tendon={tendon!r}; expected one of {TENDON_MODES}")
+        if srs is not None and tendon != "rigid":
+            raise ValueError("short-range stiffness is implemented for rigid tendons only; use tendon='rigid' or srs=None")
+        self.srs = srs
         self.constants = constants or ThelenConstants()
         self.params = params or muscle_parameters(model)
         self.tendon = tendon
@@ -56,6 +62,8 @@ class MuscleSystem(LeafSystem):
         x0 = np.full(n, self.constants.minimum_activation)
         if tendon == "compliant":
             x0 = np.concatenate([x0, self.params.optimal_fiber_length])
+        if srs is not None:
+            x0 = np.concatenate([x0, np.ones(n)])  # placed at the fiber lengths by steady_state()
         self.DeclareContinuousState(len(x0))
         self._x0 = x0
         self._kin_path, self._kin = None, None
@@ -80,6 +88,18 @@ class MuscleSystem(LeafSystem):
         """Initial state: minimum activation (and optimal fiber lengths for compliant tendons)."""
         return self._x0.copy()
 
+    def steady_state(self, activation, path) -> np.ndarray:
+        """State at rest at `path` with `activation`: compliant fibers in force equilibrium with
+        their tendons, SRS reference lengths at the fiber lengths."""
+        x = self.default_state
+        n = self.n
+        x[:n] = activation
+        if self.tendon == "compliant":
+            x[n:2 * n] = thelen.equilibrium_fiber_length(activation, path.lengths, self.params, self.constants).fiber_length
+        if self.srs is not None:
+            x[-n:] = self._kinematics(path).normalized_fiber_length
+        return x
+
     def SetDefaultState(self, context, state):  # noqa: N802 (Drake API)
         state.get_mutable_continuous_state().SetFromVector(self._x0)
 
@@ -96,14 +116,26 @@ class MuscleSystem(LeafSystem):
         if self.tendon == "compliant":
             return self.muscle_state(context).tendon_force
         x = context.get_continuous_state_vector().CopyToVector()
-        force = thelen.rigid_tendon_force(x, self._kinematics(self._path.Eval(context)), self.params, self.constants)
+        kin = self._kinematics(self._path.Eval(context))
+        force = thelen.rigid_tendon_force(x[: self.n], kin, self.params, self.constants) + self._srs_force(x, kin)
         return force if self.mask is None else force * self.mask
+
+    def _srs_force(self, x, kin: thelen.RigidKinematics):
+        """Short-range stiffness force along the tendon (N), 0 without SRS or at a clamped fiber."""
+        if self.srs is None:
+            return 0.0
+        a = thelen.clamp_activation(x[: self.n], self.constants)
+        force = self.srs.fiber_force(a, kin.active_force_length, self.params.max_isometric_force,
+                                     kin.normalized_fiber_length - x[-self.n:])
+        return np.where(kin.clamped, 0.0, force * kin.cos_pennation)
 
     def _calc_state(self, context, output):
         x = context.get_continuous_state_vector().CopyToVector()
         path = self._path.Eval(context)
         if self.tendon == "rigid":
-            value = thelen.rigid_tendon(x, path.lengths, path.velocities, self.params, self.constants, self._kinematics(path))
+            kin = self._kinematics(path)
+            value = thelen.rigid_tendon(x[: self.n], path.lengths, path.velocities, self.params, self.constants, kin)
+            value.tendon_force = value.tendon_force + self._srs_force(x, kin)
         else:
             value = thelen.compliant_tendon(x[: self.n], x[self.n :], path.lengths, self.params, self.constants)
         if self.mask is not None:
@@ -124,4 +156,7 @@ class MuscleSystem(LeafSystem):
         da = thelen.activation_derivative(self._u.Eval(context), x[: self.n], self.constants)
         if self.tendon == "compliant":
             da = np.concatenate([da, self.muscle_state(context).fiber_velocity])
+        if self.srs is not None:
+            ln = self._kinematics(self._path.Eval(context)).normalized_fiber_length
+            da = np.concatenate([da, self.srs.reference_rate(ln, x[-self.n:])])
         derivatives.get_mutable_vector().SetFromVector(da)

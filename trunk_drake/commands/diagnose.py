@@ -1,13 +1,11 @@
-"""CLI: `trunk-drake diagnose DATA... --out DIR` and `trunk-drake gap-benchmark --out DIR`."""
+"""`trunk-drake diagnose DATA... --out DIR`: where the model departs from the data, which effect, how far it shrinks."""
 
 from __future__ import annotations
 
 import json
 
-import numpy as np
 
-
-def add_commands(sub) -> None:
+def add_command(sub) -> None:
     p = sub.add_parser("diagnose", help="diagnose the sim-to-real gap: where, which unmodelled effect, how far it shrinks",
                        description="Trials (CSV/.sto/.mot or folders; a conditions.toml beside them sets the known conditions) "
                                    "against the model with the given reflex gains.")
@@ -21,18 +19,12 @@ def add_commands(sub) -> None:
     p.add_argument("--refine", type=int, default=3, help="candidates refined with nonlinear simulations")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--json", action="store_true", help="print a JSON summary")
-    p.set_defaults(func=_cmd_diagnose)
-
-    b = sub.add_parser("gap-benchmark", help="diagnose data whose effect was withheld: confusion matrix and gap reduction")
-    b.add_argument("--out", required=True, help="output folder (results.jsonl, summary.md/json, one report per case)")
-    b.add_argument("--quick", action="store_true", help="one magnitude per effect and 2 no-effect cases (9 cases)")
-    b.add_argument("--noise-deg", type=float, default=None, help="angle noise (default 0.1 deg)")
-    b.add_argument("--workers", type=int, default=2)
-    b.add_argument("--json", action="store_true", help="print the summary as JSON")
-    b.set_defaults(func=_cmd_benchmark)
+    p.set_defaults(func=run)
 
 
-def _cmd_diagnose(args) -> int:
+def run(args) -> int:
+    import numpy as np
+
     from trunk_drake.diagram import TrunkOptions
     from trunk_drake.gap.diagnose import diagnose_gap
     from trunk_drake.gap.report import write_diagnosis
@@ -58,16 +50,4 @@ def _cmd_diagnose(args) -> int:
                          indent=2, default=str))
     else:
         print(f"{diagnosis.verdict}\nreport: {files['report']}")
-    return 0
-
-
-def _cmd_benchmark(args) -> int:
-    from trunk_drake.gap.benchmark import DEFAULT_NOISE_DEG, run_benchmark
-
-    summary = run_benchmark(args.out, quick=args.quick, noise_deg=args.noise_deg or DEFAULT_NOISE_DEG,
-                            workers=args.workers, progress=None if args.json else print)
-    if args.json:
-        print(json.dumps({k: v for k, v in summary.items() if k != "rows"}, indent=2, default=str))
-    else:
-        print(f"summary: {args.out}/summary.md")
     return 0

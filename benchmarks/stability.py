@@ -1,0 +1,57 @@
+"""Benchmark: a full stability report (`td.stability`) for the README's main-job configuration; prints JSON.
+
+The report: closed-loop equilibrium near upright, static energy Hessian, characteristic roots
+with the one-sided branches of a real rightmost root, and the three critical values by
+bisection (co-activation, reflex gain scale, bushing stiffness). Model loading is timed
+separately. Load-independent measures: diagram derivative evaluations and characteristic-root
+solves. Target (shared/DESIGN.md): 5 s for the report.
+"""
+
+import json
+import os
+import platform
+import time
+import warnings
+
+import trunk_drake as td
+from trunk_drake.data import models_dir
+from trunk_drake.diagram import TrunkOptions
+from trunk_drake.metadata import package_versions
+from trunk_drake.optim import stability as stability_module
+from trunk_drake.simulation import DEFAULT_GAINS, load_reflex_gains
+
+
+def counted(function, counter, key):
+    def wrapper(*args, **kwargs):
+        counter[key] += 1
+        return function(*args, **kwargs)
+    return wrapper
+
+
+def main():
+    out = {"machine": platform.processor() or platform.machine(), "python": platform.python_version(),
+           "load_average_before": os.getloadavg(), "versions": package_versions()}
+    start = time.perf_counter()
+    model = td.load_model("sagittal")
+    out["model_load_s"] = time.perf_counter() - start
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        options = TrunkOptions(feedforward=td.coactivation(model, 0.02), stiffness=125.0, damping=7.5,
+                               **load_reflex_gains(models_dir() / DEFAULT_GAINS))
+    counter = {"derivative_evaluations": 0, "characteristic_root_solves": 0}
+    stability_module.time_derivatives = counted(stability_module.time_derivatives, counter, "derivative_evaluations")
+    stability_module.characteristic_roots = counted(stability_module.characteristic_roots, counter, "characteristic_root_solves")
+    for label, critical in (("report_without_critical_values", False), ("full_report", True)):
+        for key in counter:
+            counter[key] = 0
+        start = time.perf_counter()
+        result = stability_module.stability(model, options, critical=critical)
+        out[label] = {"wall_s": time.perf_counter() - start, **counter}
+    out["full_report"]["target_s"] = 5.0
+    out["verdict"] = result.verdict()
+    out["load_average_after"] = os.getloadavg()
+    print(json.dumps(out, indent=2))
+
+
+if __name__ == "__main__":
+    main()
