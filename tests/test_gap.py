@@ -98,7 +98,7 @@ def model():
 
 def test_diagnosis_names_withheld_damping_and_shrinks_the_gap(model, tmp_path):
     nominal = nominal_options()
-    truth = truth_options(nominal, Case("damping", "extra_damping", {"damping": 20.0}, seed=3))
+    truth = truth_options(nominal, Case("damping", "single", (("extra_damping", {"damping": 20.0}),), seed=3))
     noise = np.radians(0.1)
     trials = synthetic_trials(model, truth, [("a", 1.0, 1), ("b", 3.0, 2)], noise, seed=3, period=PERIOD)
     d = diagnose_gap(model, trials, nominal, noise=noise, period=PERIOD, refine=2, max_effects=1,

@@ -15,6 +15,7 @@ from typing import Callable
 import numpy as np
 
 from trunk_drake.diagram import TrunkOptions
+from trunk_drake.muscle.short_range import ShortRangeStiffness
 
 
 @dataclass(frozen=True)
@@ -40,9 +41,6 @@ class Effect:
     parameters: tuple[Parameter, ...]
     apply: Callable[[TrunkOptions, dict], TrunkOptions]
     note: str = ""
-    # nonlinear in amplitude: the screening sees only its statistically linearised stiffness, not the
-    # shift of the operating point it causes, so the search always refines it with nonlinear simulations
-    amplitude_dependent: bool = False
 
     def values(self, x) -> dict[str, float]:
         return {p.name: p.value(v) for p, v in zip(self.parameters, x)}
@@ -61,6 +59,18 @@ def _extra_damping(options: TrunkOptions, values: dict) -> TrunkOptions:
     return dataclasses.replace(options, damping=np.asarray(options.damping, float) + values["damping"])
 
 
+def _bushing_stiffness(options: TrunkOptions, values: dict) -> TrunkOptions:
+    return dataclasses.replace(options, stiffness=np.asarray(options.stiffness, float) * values["scale"])
+
+
+def _strength(options: TrunkOptions, values: dict) -> TrunkOptions:
+    return dataclasses.replace(options, strength_scale=options.strength_scale * values["scale"])
+
+
+def _short_range_stiffness(options: TrunkOptions, values: dict) -> TrunkOptions:
+    return dataclasses.replace(options, srs=dataclasses.replace(ShortRangeStiffness.from_reference(), gain=values["gain"]))
+
+
 CATALOGUE: tuple[Effect, ...] = (
     Effect("reflex_delay", "transport delay of the spinal stretch (and Golgi) reflex loop",
            (Parameter("delay", 0.0, 0.12, 0.02, unit="s"),), _replace(reflex_delay="delay"),
@@ -74,8 +84,8 @@ CATALOGUE: tuple[Effect, ...] = (
            "bounds are a modelling choice (vestibular/visual latencies are longer than spinal ones)"),
     Effect("stiffening_discs", "nonlinear, stiffening intervertebral moment-angle law M = -k (q + c q^3)",
            (Parameter("cubic", 0.0, 2000.0, 50.0, unit="1/rad^2"),), _replace(cubic="cubic"),
-           "at 0.05 rad, c = 2000 triples the stiffness; amplitude-dependent, so trials of different size separate it from a stiffness error",
-           amplitude_dependent=True),
+           "at 0.05 rad, c = 2000 triples the stiffness; amplitude-dependent, so trials of different size separate it from "
+           "a stiffness error (the screening linearises it over each trial's own RMS angle)"),
     Effect("seat_compliance", "pelvis-seat compliance: the pelvis does not follow the platform exactly",
            (Parameter("stiffness", 3.0, 6.0, 5.0, log10=True, unit="N/m"), Parameter("damping", 1.0, 4.0, 2.5, log10=True, unit="N s/m")),
            _seat,
@@ -86,6 +96,23 @@ CATALOGUE: tuple[Effect, ...] = (
     Effect("extra_damping", "extra passive intervertebral damping",
            (Parameter("damping", 0.0, 30.0, 1.0, unit="Nms/rad per level"),), _extra_damping,
            "added to every lumbar level's bushing damping"),
+    Effect("bushing_stiffness", "mis-set (linear) intervertebral bushing stiffness",
+           (Parameter("scale", -0.5, 0.5, 0.05, log10=True, unit="x nominal stiffness"),), _bushing_stiffness,
+           "multiplies every level's bushing stiffness; a factor 3 either way spans the spread of in vitro lumbar "
+           "segment stiffness around the thesis' value (modelling choice; the thesis swept it over a wide range too: models/reference_values.toml [intervertebral.thesis_sweep])"),
+    Effect("muscle_strength", "muscle strength scale (specific tension / maximum isometric forces)",
+           (Parameter("scale", -0.3, 0.3, 0.05, log10=True, unit="x maximum isometric forces"),), _strength,
+           "multiplies every muscle's maximum isometric force; a factor 2 either way (modelling choice: published "
+           "specific tensions differ about twofold)"),
+    Effect("upper_body_mass", "upper-body mass error (thorax body)",
+           (Parameter("scale", 0.7, 1.4, 1.05, unit="x thorax mass and inertia"),), _replace(upper_body_mass_scale="scale"),
+           "scales the thorax body's mass and inertia (bounds: modelling choice covering arms, clothing and anthropometric "
+           "spread; a centre-of-mass shift was left out: 1 cm moves this model's posture by 2.5 deg per level and its "
+           "response far beyond a linearisation)"),
+    Effect("short_range_stiffness", "short-range stiffness of active muscle (cross-bridge stiffness)",
+           (Parameter("gain", 1.0, 3.3, 2.0, log10=True, unit="F_max per l_opt at full activation"),), _short_range_stiffness,
+           "De Groote et al. (2017) SRS with the constants of models/reference_values.toml [muscle.srs] except the gain, "
+           "fitted over 10-2000 (reference value 280)"),
 )
 
 

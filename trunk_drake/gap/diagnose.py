@@ -7,22 +7,24 @@ Method (the stages are modules of this package):
    trial's own perturbation. The gap is located per output and level (VAF, chi-square per
    sample), per frequency (FRF gain and phase errors at the excited lines against the data's
    own confidence bounds), per time window, and for linearity (power at non-excited lines).
-2. *Which effect* (`search`): every candidate is refitted together with the nominal reflex
+2. *Which effects* (`search`): every candidate is refitted together with the nominal reflex
    gains (in their identifiable subspace) on the first half of every trial's steady window
    (`trials`) and scored by chi-square on the held-out second halves, penalised BIC-like:
-   dBIC = chi2(gains-only refit) - chi2(candidate) - k ln N. The gains-only refit is the
-   "mis-set parameter" explanation; an effect is claimed only when dBIC exceeds the
-   threshold. The gains-only refit uses full nonlinear simulations (`refit`). Screening is
-   linear (`screen`): the diagram is linearised once around the nominal operating point and a
-   candidate's prediction is the refitted simulation plus the linear model's relative change
-   at the excited lines, so all candidates are screened in seconds. The best `refine`
-   candidates (and the amplitude-dependent ones, whose linearisation misses the
-   operating-point shift they cause) are then refitted and scored with full nonlinear
-   simulations; forward selection adds a second effect when its dBIC also exceeds a tenth of
-   the first effect's.
+   dBIC = chi2(model without it) - chi2(model with it) - k ln N. The gains-only refit is the
+   "mis-set parameter" explanation; an effect is claimed only when its own dBIC exceeds the
+   threshold. Refits use full nonlinear simulations (`refit`). Screening is linear
+   (`screen`): the diagram is linearised once around the nominal operating point and a
+   candidate's prediction is the current model's simulation plus the linear model's relative
+   change at the excited lines (amplitude-dependent laws linearised over each trial's own
+   range), so all candidates are screened in seconds. The best `refine` candidates of each
+   screening are refitted and scored with nonlinear simulations; forward selection adds the
+   best effect while its own dBIC passes, the selected effects and the gains are refitted
+   jointly, and backward steps drop an effect that no longer earns its place.
 3. *How far it shrinks* (`measures`): 1 - VAF and the FRF error on the held-out halves before
    (nominal), after a gains-only refit and after the selected effect(s), with bootstrap
-   intervals over 2 s windows.
+   intervals over 2 s windows; and whether what remains is measurement noise (held-out
+   chi-square per sample, whiteness, FRF errors against the data's bounds). When it is not,
+   the verdict says so first, with where the remainder lies.
 """
 
 from __future__ import annotations
@@ -35,13 +37,12 @@ import numpy as np
 
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.gap.catalogue import CATALOGUE, effect
-from trunk_drake.gap.linear import OperatingPoint
-from trunk_drake.gap.measures import frf_errors, locate_gap, measure_shrinkage, segment_chi2
+from trunk_drake.gap.measures import frf_errors, locate_gap, measure_shrinkage, remainder, segment_chi2
 from trunk_drake.gap.refit import Simulator, TimeDomainFitter
 from trunk_drake.gap.screen import LinearScreen, identifiable_directions
 from trunk_drake.gap.search import SearchResult, Settings, search_effects
 from trunk_drake.gap.space import SearchSpace
-from trunk_drake.gap.trials import estimate_noise, half, prepare_trials
+from trunk_drake.gap.trials import estimate_noise, half, noise_variance_uncertainty, prepare_trials
 from trunk_drake.io.trials import OUTPUT_NAMES
 
 
@@ -58,6 +59,8 @@ class GapDiagnosis:
     noise_rad: list  # measurement noise per output (rad)
     wall_time_s: float
     options: dict = field(default_factory=dict)
+    steps: list = field(default_factory=list)  # the selection, step by step
+    remainder: dict = field(default_factory=dict)  # is what the selected model leaves measurement noise?
     series: dict = field(default_factory=dict)  # per trial: time, data, nominal, refit, effect (lumbar rotation)
 
     def to_dict(self) -> dict:
@@ -65,21 +68,25 @@ class GapDiagnosis:
 
 
 def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: float | None = None, outputs=OUTPUT_NAMES,
-                 candidates=None, threshold: float = 10.0, max_effects: int = 2, refine: int = 3, period: float = 20.0,
+                 candidates=None, threshold: float = 10.0, max_effects: int = 3, refine: int = 3, period: float = 20.0,
                  fade: float = 2.0, workers: int = 2, progress: bool = False) -> GapDiagnosis:
     """Diagnose the gap between `model` (with `options`, e.g. fitted reflex gains) and `trials`.
 
     `noise` (rad, scalar or per output) is the measurement noise of the angles (estimated per
-    output from the data's high frequencies when None). `candidates` defaults to the whole catalogue; the best `refine`
-    of the linear screening are refitted with nonlinear simulations. An effect is claimed
-    when it lowers the held-out chi-square by more than `threshold` after a k ln N penalty.
+    output from the data's high frequencies when None). `candidates` defaults to the whole
+    catalogue; the best `refine` of each linear screening are refitted with nonlinear
+    simulations. An effect is claimed when it lowers the held-out chi-square of the model
+    without it by more than `threshold` after a k ln N penalty; at most `max_effects`.
     """
     wall = _time.perf_counter()
     say = (lambda msg: print(f"[{_time.perf_counter() - wall:6.1f} s] {msg}", flush=True)) if progress else None
     options = options or TrunkOptions()
     candidates = tuple(effect(c) if isinstance(c, str) else c for c in (candidates or CATALOGUE))
     data = prepare_trials(trials, outputs, period, fade)
-    noise = np.broadcast_to(np.asarray(noise, float), (len(outputs),)).copy() if noise is not None else estimate_noise(data)
+    if noise is None:
+        noise, noise_rel_sd = estimate_noise(data), noise_variance_uncertainty(data)
+    else:
+        noise, noise_rel_sd = np.broadcast_to(np.asarray(noise, float), (len(outputs),)).copy(), 0.0
     if say:
         say(f"{len(data)} trials, noise {np.round(np.degrees(noise), 3).tolist()} deg; simulating the nominal model")
     settings = Settings(threshold, max_effects, refine)
@@ -89,7 +96,7 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
             if isinstance(r, Exception):
                 raise ValueError(f"the nominal model diverges on {t.name}: {r}")
         nominal = [r[0] for r in results]
-        screen = LinearScreen(model, options, data, nominal, OperatingPoint.mean([r[1] for r in results]), noise)
+        screen = LinearScreen(model, options, data, nominal, [r[1] for r in results], noise)
         space = SearchSpace.around(model, options)
         space = dataclasses.replace(space, directions=identifiable_directions(screen, space))
         fitter = TimeDomainFitter(simulator, space, data, noise, outputs)
@@ -99,36 +106,72 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
     found.scores.update(nominal_heldout_chi2=sum(segment_chi2(t.steady_outputs, n, noise, half(t, "test"))
                                                  for t, n in zip(data, nominal)),
                         simulations=fitter.simulations + len(data))
-    return _report(data, noise, nominal, space, found, settings, candidates, outputs, wall)
+    left = remainder(data, found.best.outputs, noise, outputs, noise_rel_sd)
+    return _report(data, noise, nominal, space, found, left, settings, candidates, outputs, wall)
 
 
-def _report(data, noise, nominal, space: SearchSpace, found: SearchResult, settings: Settings, candidates, outputs,
-            wall) -> GapDiagnosis:
-    """Where, the search's outcome and the shrinkage, assembled."""
+def _report(data, noise, nominal, space: SearchSpace, found: SearchResult, left: dict, settings: Settings, candidates,
+            outputs, wall) -> GapDiagnosis:
+    """Where, the search's outcome, the remainder and the shrinkage, assembled."""
     variants = {"nominal": nominal, "refit": found.base.outputs}
     if found.selected:
         variants["effect"] = found.best.outputs
     shrink = measure_shrinkage(data, variants, float(noise[0]))
     shrink["frf_error"] = frf_errors(data, variants)
-    final = {"effects": found.best.values if found.selected else {}, "gains": space.gains(found.best.x[:space.rank])}
+    on_bounds = _on_bounds(space, found)
+    final = {"effects": found.best.values if found.selected else {}, "gains": space.gains(found.best.x[:space.rank]),
+             "on_bounds": on_bounds}
     series = {t.name: {"time": t.time[t.steady], "data": t.steady_outputs[:, 0],
                        **{k: (None if v[i] is None else v[i][:, 0]) for k, v in variants.items()}}
               for i, t in enumerate(data)}
     return GapDiagnosis(where=locate_gap(data, nominal, noise, outputs), ranking=found.ranking, selected=found.selected,
-                        verdict=_verdict(found, settings.threshold), shrink=shrink, final=final, noise_rad=noise.tolist(),
-                        wall_time_s=_time.perf_counter() - wall,
+                        verdict=_verdict(found, left, shrink, on_bounds, settings.threshold), shrink=shrink, final=final,
+                        noise_rad=noise.tolist(), wall_time_s=_time.perf_counter() - wall,
                         options={"threshold": settings.threshold, "max_effects": settings.max_effects,
                                  "refine": settings.refine, "outputs": list(outputs),
                                  "candidates": [c.name for c in candidates], "scores": found.scores,
                                  "gain_directions": int(space.rank), "held_out": "second half of every trial's steady window"},
-                        series=series)
+                        steps=found.steps, remainder=left, series=series)
 
 
-def _verdict(found: SearchResult, threshold: float) -> str:
+def _on_bounds(space: SearchSpace, found: SearchResult, tolerance: float = 0.01) -> list[str]:
+    """The selected effects' parameters fitted within `tolerance` of their range from a bound."""
+    lo, hi, _ = space.bounds(tuple(effect(n) for n in found.selected))
+    flagged, k = [], space.rank
+    for name in found.selected:
+        for p in effect(name).parameters:
+            x, span = found.best.x[k], hi[k] - lo[k]
+            for side, bound in (("lower", lo[k]), ("upper", hi[k])):
+                if abs(x - bound) <= tolerance * span:
+                    flagged.append(f"{name}.{p.name} = {p.value(x):.4g} {p.unit} at its {side} bound")
+            k += 1
+    return flagged
+
+
+def _verdict(found: SearchResult, left: dict, shrink: dict, on_bounds: list[str], threshold: float) -> str:
     if found.selected:
-        return (f"missing effect: {', '.join(found.selected)} (held-out dBIC {found.ranking[0]['delta_bic']:.0f} > {threshold:g} "
-                "over a refit of the nominal reflex gains)")
-    if found.scores["nominal_heldout_chi2"] - found.scores["refit_heldout_chi2"] > threshold:
-        return ("mis-set parameters: a refit of the nominal reflex gains reduces the held-out gap; "
-                f"no candidate effect improves on it by more than dBIC {threshold:g}")
-    return "no significant gap that a refit or a candidate effect explains beyond measurement noise"
+        claims = ", ".join(f"{s['effect']} (dBIC {s['delta_bic']:.0f})" for s in found.steps
+                           if s["action"] == "add" and s["effect"] in found.selected)
+        explained = f"missing effect{'s' if len(found.selected) > 1 else ''}: {claims}"
+    elif found.scores["nominal_heldout_chi2"] - found.scores["refit_heldout_chi2"] > threshold:
+        explained = ("mis-set parameters: a refit of the nominal reflex gains reduces the held-out gap; "
+                     f"no candidate effect improves on it by more than dBIC {threshold:g}")
+    else:
+        explained = "no significant gap that a refit or a candidate effect explains beyond measurement noise"
+    if on_bounds:
+        explained += f" (fitted on a bound: {'; '.join(on_bounds)})"
+    if left["is_noise"]:
+        return explained + "; what remains is measurement noise"
+    share = 1.0 - shrink["reduction_above_noise"]
+    where = [f"outputs {', '.join(left['outputs'])}"] if left["outputs"] else []
+    lines = sorted({f for v in left["frequencies_hz"].values() for f in v})
+    if lines:
+        where.append(f"{', '.join(f'{f:.2f}' for f in lines)} Hz")
+    windows = sorted({w for v in left["windows_s"].values() for w in v})
+    if windows:
+        where.append(f"windows starting at {', '.join(f'{w:.0f}' for w in windows)} s")
+    return (f"an unexplained gap remains: {100 * share:.0f} % of the gap above the noise floor"
+            + (f", at {'; '.join(where)}" if where else "")
+            + f" (held-out chi2 per sample {max(left['chi2_per_sample'].values()):.2f}, whiteness p = {left['ljung_box']['p']:.2g}); "
+            + ("no catalogued effect explains it; " if not found.selected else "no catalogued effect explains the rest; ")
+            + explained)

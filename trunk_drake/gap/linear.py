@@ -24,7 +24,7 @@ in the linear model too (options the linearisation cannot follow raise an error)
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -71,9 +71,13 @@ class OperatingPoint:
         return cls(*(np.mean([getattr(p, f.name) for p in points], axis=0) for f in dataclasses.fields(cls)))
 
 
+# options the linear model follows by re-linearising once with a step (value: the step), linear in between
+_PARAMETRIC = {"strength_scale": 0.05, "upper_body_mass_scale": 0.05}
 # TrunkOptions fields the linear model follows; every other field must equal the linearised options
 _FOLLOWED = {"kp", "kv", "reflex_delay", "gto_gain", "vestibular_gain", "vestibular_delay", "activation_scale",
-             "stiffness", "damping", "cubic", "pelvis", "seat_stiffness", "seat_damping", "pelvis_mass"}
+             "stiffness", "damping", "cubic", "pelvis", "seat_stiffness", "seat_damping", "pelvis_mass", "srs", *_PARAMETRIC}
+# the arrays of a linearisation that depend on the _PARAMETRIC options
+_BLOCKS = ("dvdq", "dvdv", "dvda", "m_inv", "b_acc", "rate", "dln_dq", "dvn_dv", "df_dq", "df_dv", "df_da", "srs_stiffness")
 
 
 @dataclass
@@ -102,48 +106,100 @@ class LinearTrunk:
     options: TrunkOptions  # the options linearised
     op: OperatingPoint
 
-    def frf(self, freqs, options: TrunkOptions) -> np.ndarray:
+    srs_stiffness: np.ndarray = None  # (n, n) R^T diag(a f_AL F_max cos^2 / l_opt) R: short-range stiffness per unit gain
+    vdot: np.ndarray = None  # (n,) accelerations at the operating point (~0 at a static equilibrium)
+    _sensitivities: dict = field(default_factory=dict, repr=False)  # d(blocks)/d(option) of the _PARAMETRIC options
+
+    def frf(self, freqs, options: TrunkOptions, amplitude=None) -> np.ndarray:
         """Rotation per platform displacement (rad/m) at `freqs` (Hz) of the diagram with
-        `options`: (n_f, 6) complex, columns total lumbar rotation then L5_S1 ... L1_L2."""
+        `options`: (n_f, 6) complex, columns total lumbar rotation then L5_S1 ... L1_L2.
+        `amplitude` (rad per level, default the operating point's) is the RMS angle over which
+        the stiffening law is linearised: give each trial its own."""
         self._check(options)
+        amplitude = self.op.amplitude if amplitude is None else np.asarray(amplitude, float)
+        b = self._blocks(options)
         freqs = np.atleast_1d(np.asarray(freqs, float))
         n = len(self.coordinates)
         out = np.empty((freqs.size, 1 + self.fe.size), dtype=complex)
-        select = np.zeros(n)
-        select[self.fe] = 1.0
-        dvdq, dvdv = self.dvdq.copy(), self.dvdv.copy()
-        dvdq[:, self.fe] -= self.m_inv[:, self.fe] * (self._bushing_stiffness(options) - self._bushing_stiffness(self.options))
-        dvdv[:, self.fe] -= self.m_inv[:, self.fe] * (_per_level(options.damping) - _per_level(self.options.damping))
-        rate = self.rate / options.activation_scale
-        stretch_q = (options.per_muscle(self.model, options.kp) * self.stretch_active)[:, None] * self.dln_dq
-        stretch_v = (0.5 * options.per_muscle(self.model, options.kv))[:, None] * self.dvn_dv
+        dvdq, dvdv = b["dvdq"].copy(), b["dvdv"].copy()
+        dvdq[:, self.fe] -= b["m_inv"][:, self.fe] * (self._bushing_stiffness(options, amplitude)
+                                                      - self._bushing_stiffness(self.options, amplitude))
+        dvdv[:, self.fe] -= b["m_inv"][:, self.fe] * (_per_level(options.damping) - _per_level(self.options.damping))
+        rate = b["rate"] / options.activation_scale
+        reflex_q, vest = self._position_feedback(options, b)
+        stretch_v = (0.5 * options.per_muscle(self.model, options.kv))[:, None] * b["dvn_dv"]
         gto = options.gto_gain * self.headroom
-        vest = (0.5 * options.vestibular_gain * (self.extensors - self.flexors))[:, None] * select[None, :]
+        srs = b["m_inv"] @ b["srs_stiffness"] * options.srs.gain if options.srs is not None else None
         for i, f in enumerate(freqs):
             s = 2j * np.pi * f
             er, ev = np.exp(-s * options.reflex_delay), np.exp(-s * options.vestibular_delay)
-            k_q = er * (stretch_q - gto[:, None] * self.df_dq) + ev * vest
-            k_v = er * (stretch_v - gto[:, None] * self.df_dv)
-            k_a = -er * gto * self.df_da
+            k_q = er * reflex_q + ev * vest
+            k_v = er * (stretch_v - gto[:, None] * b["df_dv"])
+            k_a = -er * gto * b["df_da"]
             g = rate / (s + rate)
             w = g / (1.0 - g * k_a)  # a = w * (k_q q + k_v v)
-            aq = dvdq + self.dvda @ (w[:, None] * k_q)
-            av = dvdv + self.dvda @ (w[:, None] * k_v)
+            aq = dvdq + b["dvda"] @ (w[:, None] * k_q)
+            av = dvdv + b["dvda"] @ (w[:, None] * k_v)
+            if srs is not None:  # the reference length follows l_n with a first-order lag: a high-passed stiffness
+                tau = options.srs.time_constant
+                aq = aq - srs * (s * tau / (1.0 + s * tau))
             Z = s * s * np.eye(n) - s * av - aq
             if self.pelvis is not None:
-                spring = self.m_inv[:, self.pelvis] * (options.seat_stiffness + s * options.seat_damping)
+                spring = b["m_inv"][:, self.pelvis] * (options.seat_stiffness + s * options.seat_damping)
                 Z[:, self.pelvis] += spring
                 rhs = spring
             else:
-                rhs = self.b_acc * s * s
+                rhs = b["b_acc"] * s * s
             q = np.linalg.solve(Z, rhs)
             out[i, 0] = q[self.fe].sum()
             out[i, 1:] = q[self.fe]
         return out
 
-    def _bushing_stiffness(self, options: TrunkOptions) -> np.ndarray:
+    def _blocks(self, options: TrunkOptions) -> dict:
+        """The linearised blocks for `options`: those of the linearisation, moved linearly along the
+        sensitivities of every _PARAMETRIC option that differs (each computed on first use)."""
+        base = {name: getattr(self, name) for name in _BLOCKS if getattr(self, name) is not None}
+        blocks = dict(base)
+        for name in _PARAMETRIC:
+            change = getattr(options, name) - getattr(self.options, name)
+            if change:
+                if name not in self._sensitivities:
+                    self._sensitivities[name] = self._sensitivity(name, base)
+                blocks = {k: v + change * self._sensitivities[name][k] for k, v in blocks.items()}
+        return blocks
+
+    def _position_feedback(self, options: TrunkOptions, b: dict) -> tuple[np.ndarray, np.ndarray]:
+        """Excitation per coordinate (m, n) of the loops through the reflex delay (stretch and Golgi)
+        and of the trunk-in-space loop, delays left out."""
+        select = np.zeros(len(self.coordinates))
+        select[self.fe] = 1.0
+        stretch = (options.per_muscle(self.model, options.kp) * self.stretch_active)[:, None] * b["dln_dq"]
+        golgi = (options.gto_gain * self.headroom)[:, None] * b["df_dq"]
+        vest = (0.5 * options.vestibular_gain * (self.extensors - self.flexors))[:, None] * select[None, :]
+        return stretch - golgi, vest
+
+    def _sensitivity(self, name: str, base: dict) -> dict:
+        """d(blocks)/d(option `name`) by one re-linearisation at a step of the option, at the operating
+        point it moves to: the step's unbalanced accelerations at the old point, resolved through the
+        static closed loop of the linearised options (the reflexes' tonic response included); with a
+        free pelvis (seat) the point is kept."""
+        step = _PARAMETRIC[name]
+        options = dataclasses.replace(self.options, **{name: getattr(self.options, name) + step})
+        seat = self.pelvis is not None
+        other = linearize(self.model, options, self.op, seat=seat)
+        if not seat:
+            reflex_q, vest = self._position_feedback(self.options, base)
+            k_q = reflex_q + vest
+            w = 1.0 / (1.0 + self.options.gto_gain * self.headroom * self.df_da)  # static activation per feedback
+            dq = -np.linalg.solve(self.dvdq + self.dvda @ (w[:, None] * k_q), other.vdot - self.vdot)
+            du = k_q @ dq
+            moved = OperatingPoint(self.op.q + dq[self.fe], self.op.a + w * du, self.op.u + du, self.op.amplitude)
+            other = linearize(self.model, options, moved)
+        return {k: (getattr(other, k) - base[k]) / step for k in base}
+
+    def _bushing_stiffness(self, options: TrunkOptions, amplitude) -> np.ndarray:
         """Per level: k (1 + 3 c E[dq^2]), the statistical linearisation of M = -k (dq + c dq^3)."""
-        return _per_level(options.stiffness) * (1.0 + 3.0 * options.cubic * self.op.amplitude**2)
+        return _per_level(options.stiffness) * (1.0 + 3.0 * options.cubic * amplitude**2)
 
     def _check(self, options: TrunkOptions) -> None:
         seat = options.pelvis == "seat"
@@ -169,6 +225,8 @@ def _same(a, b) -> bool:
 def linearize(model, options: TrunkOptions, op: OperatingPoint, seat: bool = False, h: float = 1e-6) -> LinearTrunk:
     """Open-loop linearisation of `model` with the non-feedback parts of `options` at the
     operating point `op`. With ``seat=True`` the pelvis slides freely (for pelvis="seat")."""
+    if options.srs is not None:
+        raise ValueError("linearise without short-range stiffness (srs=None): the linear model adds it per frequency")
     q0, a0, u0 = op.q, op.a, op.u
     open_loop = dataclasses.replace(options, kp=0.0, kv=0.0, gto_gain=0.0, vestibular_gain=0.0, reflex_delay=0.0,
                                     vestibular_delay=0.0, feedforward=np.asarray(u0, float),
@@ -208,6 +266,7 @@ def linearize(model, options: TrunkOptions, op: OperatingPoint, seat: bool = Fal
     f_max = params.max_isometric_force
     l_set = td.reflex.l_desired
     u0 = np.asarray(u0, float)
+    srs_unit = np.asarray(a0, float) * kin.active_force_length * f_max * kin.cos_pennation**2 / params.optimal_fiber_length
     return LinearTrunk(
         coordinates=list(base.coordinates), fe=np.asarray(td.fe_indices), dvdq=jac[vrows, :nq], dvdv=jac[vrows, nq:2 * nq],
         dvda=jac[vrows, arows], m_inv=np.linalg.inv(plant.CalcMassMatrix(plant_ctx)), b_acc=b_acc,
@@ -218,7 +277,7 @@ def linearize(model, options: TrunkOptions, op: OperatingPoint, seat: bool = Fal
         df_da=deriv.d_activation / f_max, stretch_active=(kin.normalized_fiber_length > l_set).astype(float),
         headroom=np.where(u0 <= options.constants.minimum_activation * (1 + 1e-9), 0.5, 1.0),
         extensors=_group_mask(base, EXTENSOR_GROUPS), flexors=_group_mask(base, FLEXOR_GROUPS),
-        model=model, options=options, op=op,
+        model=model, options=options, op=op, srs_stiffness=R.T @ (srs_unit[:, None] * R), vdot=f(x0)[vrows],
     )
 
 

@@ -112,3 +112,55 @@ def frf_errors(trials, variants: dict) -> dict:
             errs.append(np.abs(np.log(fm.H / fd.H)))
         out[key] = float(np.mean(np.concatenate(errs))) if errs else None
     return out
+
+
+def remainder(trials, model_outputs, noise, outputs, noise_rel_sd=None, p_threshold: float = 1e-3, lags: int = 20) -> dict:
+    """Is what the selected model leaves on the held-out halves measurement noise? Three tests, each
+    against its distribution under white Gaussian noise of the given level:
+
+    * chi-square per sample, per output: the sum of squared residuals (offset removed) over
+      noise^2 against chi2 with n - 1 degrees of freedom per trial; when the noise was estimated,
+      its relative uncertainty (`noise_rel_sd`, of the variance) widens the expected spread;
+    * whiteness: the Ljung-Box statistic of the residual's autocorrelation (lags 1..`lags`)
+      against chi2 with `lags` degrees of freedom per trial and output;
+    * FRF errors: the count of excited lines whose gain or phase error lies beyond 2 SD of the
+      data's own bounds (`locate_gap`) against a binomial with the 2-SD two-test rate.
+
+    The remainder is noise when no test rejects at `p_threshold`. Also returns where it is not:
+    outputs, frequencies and time windows whose residual exceeds the noise."""
+    from scipy import stats
+
+    noise = np.broadcast_to(np.asarray(noise, float), (len(outputs),))
+    rel_sd = np.zeros(len(outputs)) if noise_rel_sd is None else np.broadcast_to(np.asarray(noise_rel_sd, float), (len(outputs),))
+    chi2, dof, q, q_dof = np.zeros(len(outputs)), np.zeros(len(outputs)), 0.0, 0
+    for trial, out in zip(trials, model_outputs):
+        part = half(trial, "test")
+        r = trial.steady_outputs[part] - out[part]
+        r = r - r.mean(axis=0)
+        chi2 += np.sum(r**2, axis=0) / noise**2
+        dof += r.shape[0] - 1
+        for j in range(r.shape[1]):
+            rho = np.array([r[k:, j] @ r[:-k, j] for k in range(1, lags + 1)]) / (r[:, j] @ r[:, j])
+            q += r.shape[0] * (r.shape[0] + 2) * np.sum(rho**2 / (r.shape[0] - np.arange(1, lags + 1)))
+            q_dof += lags
+    z = (chi2 / dof - 1.0) / np.sqrt(2.0 / dof + rel_sd**2)
+    p_chi2 = stats.norm.sf(z)
+    p_white = float(stats.chi2.sf(q, q_dof))
+    where = locate_gap(trials, model_outputs, noise, outputs)
+    lines = {name: np.asarray(f["frequencies_hz"])[np.asarray(f["significant"])].tolist() for name, f in where["per_frequency"].items()}
+    n_lines = sum(len(f["significant"]) for f in where["per_frequency"].values())
+    n_significant = sum(len(v) for v in lines.values())
+    rate = 1.0 - (1.0 - 2.0 * stats.norm.sf(2.0)) ** 2  # P(beyond 2 SD) in gain or in phase
+    p_frf = float(stats.binom.sf(n_significant - 1, n_lines, rate)) if n_lines else 1.0
+    windows = {}
+    for name, w in where["per_window"].items():
+        n_win = int(round(WINDOW_S * trials[0].fs))
+        limit = 1.0 + stats.norm.isf(p_threshold) * np.sqrt(2.0 / n_win)
+        windows[name] = [s for s, c in zip(w["start_s"], w["chi2_per_sample"]) if c > limit]
+    noise_like = bool(min(p_chi2.min(), p_white, p_frf) >= p_threshold)
+    return {"is_noise": noise_like, "p_threshold": p_threshold,
+            "chi2_per_sample": dict(zip(outputs, (chi2 / dof).tolist())), "chi2_z": dict(zip(outputs, z.tolist())),
+            "p_chi2": dict(zip(outputs, p_chi2.tolist())), "ljung_box": {"q": float(q), "dof": q_dof, "p": p_white},
+            "frf": {"significant": n_significant, "lines": n_lines, "expected_rate": rate, "p": p_frf},
+            "outputs": [o for o, p in zip(outputs, p_chi2) if p < p_threshold],
+            "frequencies_hz": {k: v for k, v in lines.items() if v}, "windows_s": {k: v for k, v in windows.items() if v}}

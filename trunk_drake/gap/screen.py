@@ -32,10 +32,13 @@ class Reference:
 class LinearScreen:
     """Linear predictions of each trial's outputs (see the module docstring)."""
 
-    def __init__(self, model, options: TrunkOptions, trials, nominal, op: OperatingPoint, noise):
-        self.model, self.options, self.op = model, options, op
+    def __init__(self, model, options: TrunkOptions, trials, nominal, ops: list[OperatingPoint], noise):
+        """`ops`: each trial's operating point in the nominal simulation; the model is linearised at
+        their mean, amplitude-dependent laws over each trial's own range."""
+        self.model, self.options, self.op = model, options, OperatingPoint.mean(ops)
+        self.amplitudes = [op.amplitude for op in ops]
         self.trials, self.noise = trials, noise
-        self.lin = linearize(model, options, op)
+        self.lin = linearize(model, options, self.op)
         self._lin_seat = None
         self.basis = [np.exp(2j * np.pi * np.outer(t.time[t.steady] - t.time[t.steady][0], t.excited_lines[0])) for t in trials]
         self.nominal = self.reference(options, nominal)
@@ -50,7 +53,7 @@ class LinearScreen:
 
     def frfs(self, options: TrunkOptions) -> list:
         lin = self.linear_model(options)
-        return [lin.frf(t.excited_lines[0], options) for t in self.trials]
+        return [lin.frf(t.excited_lines[0], options, amplitude) for t, amplitude in zip(self.trials, self.amplitudes)]
 
     def reference(self, options: TrunkOptions, outputs) -> Reference:
         """The simulated `outputs` of `options` as the reference of later predictions."""

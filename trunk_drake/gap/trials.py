@@ -32,16 +32,25 @@ def half(trial: prepared.PreparedTrial, which: str) -> slice:
 def estimate_noise(trials) -> np.ndarray:
     """White measurement noise per output (rad) from output power far above the excited band,
     where the trunk's response is negligible (periodogram: E|X_k|^2 = N sigma^2)."""
-    estimates = []
-    for trial in trials:
-        y = trial.steady_outputs
-        freqs = np.fft.rfftfreq(y.shape[0], 1.0 / trial.fs)
-        high = freqs > max(5.0, 3.0 * trial.excited_lines[0].max())
-        if high.sum() < 10:
-            continue
-        spec = np.fft.rfft(y, axis=0)
-        estimates.append(np.mean(np.abs(spec[high]) ** 2, axis=0) / y.shape[0])
+    estimates = [np.mean(np.abs(spec) ** 2, axis=0) / n for spec, n in _noise_bands(trials)]
     if not estimates:
         raise ValueError("cannot estimate the measurement noise (sampling too slow for a noise band above the excitation): "
                          "give noise=... (rad)")
     return np.sqrt(np.median(estimates, axis=0))
+
+
+def noise_variance_uncertainty(trials) -> float:
+    """Relative standard deviation of the estimated noise variance: each periodogram bin of white
+    noise is exponential about sigma^2, so the mean of M bins has 1/sqrt(M); the median over the
+    trials widens that by about 1.25."""
+    return 1.25 / np.sqrt(sum(spec.shape[0] for spec, _ in _noise_bands(trials)))
+
+
+def _noise_bands(trials):
+    """(spectrum of the outputs above the excited band, samples) per trial with a usable band."""
+    for trial in trials:
+        y = trial.steady_outputs
+        freqs = np.fft.rfftfreq(y.shape[0], 1.0 / trial.fs)
+        high = freqs > max(5.0, 3.0 * trial.excited_lines[0].max())
+        if high.sum() >= 10:
+            yield np.fft.rfft(y, axis=0)[high], y.shape[0]

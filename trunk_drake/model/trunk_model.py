@@ -54,9 +54,9 @@ class TrunkModel:
 
     def variant(self, **changes) -> "TrunkModel":
         """The same model (same spec) rebuilt with other options of `load_model`."""
-        options = {"dofs": self.dofs, "pelvis_free": self.pelvis_free, "pelvis_mass": self.pelvis_mass}
+        options = {"spec": self.spec, "dofs": self.dofs, "pelvis_free": self.pelvis_free, "pelvis_mass": self.pelvis_mass}
         options.update(changes)
-        return load_model(spec=self.spec, **options)
+        return load_model(**options)
 
     def muscle_array(self, attribute: str) -> np.ndarray:
         """A per-muscle parameter as an array, e.g. ``muscle_array("max_isometric_force")``."""
