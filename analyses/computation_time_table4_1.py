@@ -7,7 +7,7 @@ import warnings
 
 import numpy as np
 
-from trunk_drake import reproduce as rp
+from trunk_drake import thesis
 from trunk_drake.diagnostics import THESIS_GROUP_ORDER, extreme_muscles, steps_by_group
 from trunk_drake.simulation import MAX_STEP, simulate
 
@@ -33,11 +33,11 @@ def run(out_dir, model=None, workers=2, inputs=None, step_duration=1.0, trial_du
 
         model = load_model("sagittal")
     rows = steps_by_group(model, duration=step_duration)
-    final, _ = rp.thesis_final_options(model)
+    final, _ = thesis.thesis_final_options(model)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         start = time.perf_counter()
-        trial = simulate(model, duration=trial_duration, bandwidth=1.0, **final, **rp.thesis_gains())
+        trial = simulate(model, duration=trial_duration, bandwidth=1.0, **final, **thesis.thesis_gains())
         trial_wall = time.perf_counter() - start
     flagged = extreme_muscles(trial)
     fit = (inputs or {}).get(FIT, {})
@@ -51,7 +51,7 @@ def run(out_dir, model=None, workers=2, inputs=None, step_duration=1.0, trial_du
         table.append([group, n, old, new, *((r["n_muscles"], r["steps"], r["derivative_evaluations"], f"{r['wall_time_s']:.2f}")
                                            if r else ("absent in MyoTorso",) + ("-",) * 3)])
 
-    plt = rp.pyplot()
+    plt = thesis.pyplot()
     fig, ax = plt.subplots(figsize=(10, 4.5))
     labels = ["(no muscles)", *(g for g, *_ in THESIS_TABLE_4_1)]
     x = np.arange(len(labels))
@@ -67,7 +67,7 @@ def run(out_dir, model=None, workers=2, inputs=None, step_duration=1.0, trial_du
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3, axis="y")
     ax.set_title("Table 4.1: muscle groups added one by one (cumulative), intrinsic properties only")
-    figure = rp.save_figure(fig, f"{out_dir}/table4_1_steps.png")
+    figure = thesis.save_figure(fig, f"{out_dir}/table4_1_steps.png")
 
     all_groups = ours_by_group[THESIS_GROUP_ORDER[-1]]
     floor = int(np.ceil(step_duration / MAX_STEP))
@@ -79,7 +79,7 @@ def run(out_dir, model=None, workers=2, inputs=None, step_duration=1.0, trial_du
                  f"published derivation). {trial_duration:g} s of the thesis' final model with reflexes and the 1 Hz "
                  f"perturbation: {trial_wall:.1f} s wall ({trial.stats['steps']} steps, real-time factor "
                  f"{trial_duration / trial_wall:.1f}). Reflex-gain fits: {fit_text}. {len(flagged)} muscles flagged as extreme.")
-    return rp.section(
+    return thesis.section(
         THESIS, ours_text,
         comparison=[["steps, 1 s, all groups", "2548 (original), 318 (changed tendon slack lengths)", f"{all_groups['steps']}"],
                     ["steps, 1 s, no muscles", f"{THESIS_NO_MUSCLE_STEPS}", f"{ours_by_group['(no muscles)']['steps']}"],

@@ -11,7 +11,7 @@ are saved for the validation section (no second fit).
 
 import numpy as np
 
-from trunk_drake import reproduce as rp
+from trunk_drake import thesis
 from trunk_drake.data import models_dir
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.io.experiment import load_experiment
@@ -50,7 +50,7 @@ def _fit_summary(result) -> dict:
 
 
 def _gain_figure(path, settling, car, truth, tables):
-    plt = rp.pyplot()
+    plt = thesis.pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(13, 7.5), sharey=True)
     panels = (("settling (Table 4.2)", settling, tables["4_2"]), ("car passenger (Table 4.3)", car, tables["4_3"]))
     for row, (name, result, table) in enumerate(panels):
@@ -73,33 +73,33 @@ def _gain_figure(path, settling, car, truth, tables):
             ax.grid(alpha=0.3, axis="y")
             ax.legend(fontsize=7)
     fig.suptitle("Fitted reflex gains (log scale); bounds 0.001-1 as the thesis")
-    return rp.save_figure(fig, path)
+    return thesis.save_figure(fig, path)
 
 
-def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, trials=TRIALS, max_iterations=20):
+def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, trials=TRIALS, max_iterations=20, t_max=None):
     if model is None:
         from trunk_drake.model.trunk_model import load_model
 
         model = load_model("sagittal")
-    feedforward, warning = rp.coactivation_quiet(model, rp.reference_value("muscle.thesis.min_activation_retained"))
-    rp.log("  settling fit (thesis 4.8.1) ...")
+    feedforward, warning = thesis.coactivation_quiet(model, thesis.reference_value("muscle.thesis.min_activation_retained"))
+    thesis.log("  settling fit (thesis 4.8.1) ...")
     target = settling_target(duration=settling_duration)
     settling = fit_reflex_gains(model, [target], scenario="settling",
                                 options=TrunkOptions(feedforward=feedforward), n_starts=1, workers=workers,
                                 max_iterations=max_iterations, progress=False)
     settling_files = write_fit(settling, f"{out_dir}/settling")
-    rp.log(f"  settling fit: {settling.wall_time_s:.0f} s, {settling.n_simulations} simulations; car-passenger fit (4.8.2) ...")
+    thesis.log(f"  settling fit: {settling.wall_time_s:.0f} s, {settling.n_simulations} simulations; car-passenger fit (4.8.2) ...")
     ref = models_dir() / "reference"
     experiment = load_experiment([ref / t for t in trials], ref / "conditions.toml")
     targets = targets_from_trials(experiment.trials, OUTPUT_NAMES, experiment.noise_rad, period=experiment.period,
-                                  steady_start=experiment.fade)
+                                  steady_start=experiment.fade, t_max=t_max)
     car = fit_reflex_gains(model, targets, options=TrunkOptions(**experiment.options), n_starts=1, workers=workers,
                            max_iterations=max_iterations, progress=False)
     car_files = write_fit(car, f"{out_dir}/car")
-    arrays = rp.save_fit_arrays(car, f"{out_dir}/car/fit_arrays.npz")
-    rp.log(f"  car fit: {car.wall_time_s:.0f} s, {car.n_simulations} simulations")
+    arrays = thesis.save_fit_arrays(car, f"{out_dir}/car/fit_arrays.npz")
+    thesis.log(f"  car fit: {car.wall_time_s:.0f} s, {car.n_simulations} simulations")
 
-    truth = rp.truth_gains()
+    truth = thesis.truth_gains()
     tables = {"4_2": _thesis_table("4_2"), "4_3": _thesis_table("4_3")}
     z = {key: {g: (car.gains[key][g] - truth[key][g]) / car.std[key][g] if np.isfinite(car.std[key][g]) else float("nan")
                for g in car.gains[key]} for key in ("kp", "kv")}
@@ -135,7 +135,7 @@ def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, tria
             f"(largest error {max(finite_z, default=float('nan')):.1f} SD); well determined (SD < 50 % of the value): "
             + (", ".join(f"{n} ({100 * e:+.0f} % from the truth)" for n, e in determined.items()) or "none")
             + f"; not identifiable: {', '.join(unidentified) or 'none'}.")
-    return rp.section(
+    return thesis.section(
         f"{THESIS['settling']} {THESIS['car']}", ours,
         comparison=[
             ["data", "van Drunen et al., 6 subjects averaged (not public)", "SYNTHETIC trials of models/reference (known truth)"],
@@ -153,7 +153,7 @@ def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, tria
                  "header": ["group", "kp fitted", "kp truth", "kp error (SD)", "kp thesis",
                             "kv fitted", "kv truth", "kv error (SD)", "kv thesis"],
                  "rows": rows_43}],
-        notes=[rp.SYNTHETIC_NOTE,
+        notes=[thesis.SYNTHETIC_NOTE,
                "The thesis' Tables 4.2/4.3 come from a different model (Schmid et al., 274 muscles, 9 groups) and measured data; "
                "they are shown for orientation, not as a target.",
                "Car-passenger fit conditions are the synthetic data's (conditions.toml: k = 300 Nm/rad, c = 6 Nms/rad, co-activation "
@@ -174,7 +174,8 @@ def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, tria
                  "files": {"car_arrays": arrays, **{f"car_{k}": v for k, v in car_files.items()},
                            **{f"settling_{k}": v for k, v in settling_files.items()}}},
         settings={"settling": f"{settling_duration:g} s, target 0 deg, co-activation 0.020, k = 100 Nm/rad, c = 7.5 Nms/rad",
-                  "car": f"{', '.join(trials)}; conditions from models/reference/conditions.toml",
+                  "car": f"{', '.join(trials)}" + (f" (first {t_max:g} s)" if t_max else "")
+                         + "; conditions from models/reference/conditions.toml",
                   "fit": f"bounded secant Levenberg-Marquardt, 1 start (thesis initial values), <= {max_iterations} iterations, "
                          f"{workers} worker processes"},
     )

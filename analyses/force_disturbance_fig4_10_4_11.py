@@ -9,7 +9,7 @@ co-activation 0.020, Table 4.3 gains) and the synthetic reference data's truth c
 
 import numpy as np
 
-from trunk_drake import reproduce as rp
+from trunk_drake import thesis
 from trunk_drake.diagram import THESIS_PELVIS_MASS
 from trunk_drake.signals import make_multisine
 
@@ -24,25 +24,25 @@ def run(out_dir, model=None, workers=2, inputs=None, duration=None, seed=0):
         model = load_model("sagittal")
     signal = make_multisine(f_max=1.0, seed=seed, fade_shape="quintic")
     duration = duration or signal.duration
-    final, warning = rp.thesis_final_options(model)
-    configs = {"thesis final model": {**final, **rp.thesis_gains()},
-               "reference-data truth": {**rp.reference_truth_options(), **rp.truth_gains()}}
+    final, warning = thesis.thesis_final_options(model)
+    configs = {"thesis final model": {**final, **thesis.thesis_gains()},
+               "reference-data truth": {**thesis.reference_truth_options(), **thesis.truth_gains()}}
     cases = [{"label": f"{name}, {pelvis}", "simulate": dict(duration=duration, perturbation=signal, pelvis_mass=THESIS_PELVIS_MASS,
                                                              **{**options, "pelvis": pelvis})}
              for name, options in configs.items() for pelvis in ("force", "prescribed")]
-    traces = rp.run_cases(cases, model, workers)
+    traces = thesis.run_cases(cases, model, workers)
 
     t = np.linspace(0.0, duration, int(round(duration * 100)) + 1)
     x, _, a = signal.evaluate(t)
     force = THESIS_PELVIS_MASS * np.asarray(a)
-    plt = rp.pyplot()
+    plt = thesis.pyplot()
     fig, ax = plt.subplots(figsize=(10, 3.5))
     ax.plot(t, force / 1000.0, "k", lw=1)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("force on the pelvis (kN, anterior +)")
     ax.set_title(f"Fig. 4.10: force disturbance = {THESIS_PELVIS_MASS:,.0f} kg x platform acceleration (0.2-1 Hz multisine)")
     ax.grid(alpha=0.3)
-    fig_force = rp.save_figure(fig, f"{out_dir}/fig4_10_force_disturbance.png")
+    fig_force = thesis.save_figure(fig, f"{out_dir}/fig4_10_force_disturbance.png")
 
     fig, axes = plt.subplots(3, 1, figsize=(10, 8), sharex=True)
     axes[0].plot(t, 100 * np.asarray(x), color="0.6", lw=2, label="platform")
@@ -67,7 +67,7 @@ def run(out_dir, model=None, workers=2, inputs=None, duration=None, seed=0):
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="upper left")
     fig.suptitle("Fig. 4.11: pelvis motion under the force disturbance versus platform motion")
-    fig_motion = rp.save_figure(fig, f"{out_dir}/fig4_11_pelvis_vs_platform.png")
+    fig_motion = thesis.save_figure(fig, f"{out_dir}/fig4_11_pelvis_vs_platform.png")
 
     peak_x = float(np.abs(x).max())
     tracking = "; ".join(f"{n}: max {e['max_mm']:.2f} mm, rms {e['rms_mm']:.2f} mm" if e else f"{n}: diverged"
@@ -75,7 +75,7 @@ def run(out_dir, model=None, workers=2, inputs=None, duration=None, seed=0):
     ours = (f"Peak force {np.abs(force).max() / 1000:.2f} kN for a {100 * peak_x:.1f} cm peak platform displacement. The pelvis "
             f"follows the platform within {tracking}; the lumbar rotation differs from the prescribed-pelvis run by at most "
             + ", ".join(f"{v:.2f} deg ({n})" for n, v in rotation_gap.items()) + ".")
-    return rp.section(
+    return thesis.section(
         THESIS, ours,
         comparison=[["force", "platform acceleration x 10,000 kg",
                      f"the same ({THESIS_PELVIS_MASS:,.0f} kg; peak {np.abs(force).max() / 1000:.2f} kN)"],
@@ -90,7 +90,7 @@ def run(out_dir, model=None, workers=2, inputs=None, duration=None, seed=0):
                *([f"Thesis final model: {warning}."] if warning else [])],
         numbers={"peak_force_N": float(np.abs(force).max()), "peak_platform_m": peak_x, "pelvis_tracking": errors,
                  "max_lumbar_rotation_difference_deg": rotation_gap,
-                 "lumbar_rotation": {label: rp.describe(tr) for label, tr in traces.items()}, "signal": signal.to_dict()},
+                 "lumbar_rotation": {label: thesis.describe(tr) for label, tr in traces.items()}, "signal": signal.to_dict()},
         settings={"duration_s": duration, "pelvis_mass_kg": THESIS_PELVIS_MASS,
                   "signal": f"0.2-1 Hz multisine, 20 s period, 2 s quintic fades, seed {seed}"},
     )

@@ -7,7 +7,7 @@ Two configurations: the thesis' final model (k = 125 Nm/rad, c = 7.5 Nms/rad, co
 
 import numpy as np
 
-from trunk_drake import reproduce as rp
+from trunk_drake import thesis
 from trunk_drake.signals import make_multisine
 
 THESIS = ("Intrinsic properties alone cannot stabilise the spine under the force disturbance: the model moves away "
@@ -39,16 +39,16 @@ def run(out_dir, model=None, workers=2, inputs=None, duration=None, seed=0):
         model = load_model("sagittal")
     signal = make_multisine(f_max=1.0, seed=seed, fade_shape="quintic")
     duration = duration or signal.duration
-    final, warning = rp.thesis_final_options(model)
-    configs = {"thesis final model": (final, rp.thesis_gains()),
-               "reference-data truth": (rp.reference_truth_options(), rp.truth_gains())}
+    final, warning = thesis.thesis_final_options(model)
+    configs = {"thesis final model": (final, thesis.thesis_gains()),
+               "reference-data truth": (thesis.reference_truth_options(), thesis.truth_gains())}
     cases = [{"label": f"{name}, {kind}", "simulate": dict(duration=duration, perturbation=signal, **options, **gains)}
              for name, (options, reflex) in configs.items()
              for kind, gains in (("intrinsic only", {"kp": 0.0, "kv": 0.0}), ("intrinsic + reflexes", reflex))]
-    traces = rp.run_cases(cases, model, workers)
+    traces = thesis.run_cases(cases, model, workers)
     metrics = {label: _metrics(tr) for label, tr in traces.items()}
 
-    plt = rp.pyplot()
+    plt = thesis.pyplot()
     fig, axes = plt.subplots(3, 1, figsize=(10, 9), sharex=True)
     t = np.linspace(0.0, duration, int(round(100 * duration)) + 1)
     axes[0].plot(t, 100 * np.asarray(signal.evaluate(t)[0]), color="0.5")
@@ -56,11 +56,11 @@ def run(out_dir, model=None, workers=2, inputs=None, duration=None, seed=0):
     axes[0].grid(alpha=0.3)
     styles = {"intrinsic only": {"color": "0.6", "lw": 2}, "intrinsic + reflexes": {"color": "k"}}
     for ax, name in zip(axes[1:], configs):
-        rp.plot_traces(ax, {kind: traces[f"{name}, {kind}"] for kind in styles}, ylabel="lumbar rotation (deg)", styles=styles)
+        thesis.plot_traces(ax, {kind: traces[f"{name}, {kind}"] for kind in styles}, ylabel="lumbar rotation (deg)", styles=styles)
         ax.set_title(name, fontsize=9)
     axes[-1].set_xlabel("time (s)")
     fig.suptitle("Fig. 4.13: intrinsic properties alone (grey) versus with stretch reflexes (black), 0.2-1 Hz perturbation")
-    figure = rp.save_figure(fig, f"{out_dir}/fig4_13_intrinsic_vs_reflex.png")
+    figure = thesis.save_figure(fig, f"{out_dir}/fig4_13_intrinsic_vs_reflex.png")
 
     def cell(label):
         m = metrics[label]
@@ -70,7 +70,7 @@ def run(out_dir, model=None, workers=2, inputs=None, duration=None, seed=0):
                     f"{_verdict(metrics[f'{name}, intrinsic + reflexes'])}." for name in configs)
     rows = [[label, *(("diverged",) * 4 if m is None else (f"{m['final_mean_deg']:+.2f}", f"{m['sd_deg']:.2f}", f"{m['rms_deg']:.2f}",
                                                          f"{m['max_abs_deg']:.2f}"))] for label, m in metrics.items()]
-    return rp.section(
+    return thesis.section(
         THESIS, ours,
         comparison=[["thesis final model (k 125, c 7.5, co-activation 0.020), intrinsic only", "unstable: moves away from equilibrium",
                      cell("thesis final model, intrinsic only")],

@@ -6,7 +6,7 @@ thesis' L5-S1 plots) and with all five levels free."""
 
 import numpy as np
 
-from trunk_drake import reproduce as rp
+from trunk_drake import thesis
 
 CONFIGS = ("locked", "free")
 THESIS = {
@@ -41,7 +41,7 @@ def _plot_groups(ax, tr, field, ylabel):
 
 
 def _listing(finals: dict) -> str:
-    return ", ".join(f"{k}: {'diverged' if v is None else rp.deg(v)}" for k, v in finals.items())
+    return ", ".join(f"{k}: {'diverged' if v is None else thesis.deg(v)}" for k, v in finals.items())
 
 
 def _smallest(finals: dict) -> str:
@@ -55,22 +55,22 @@ def _spread(finals) -> float | None:
 
 
 def run(out_dir, model=None, workers=2, inputs=None, duration=4.0, values=None, kp_for_ld=0.1):
-    values = tuple(values or rp.reference_value("reflex.thesis.gain_sweep_values"))
-    k = rp.reference_value("intervertebral.thesis_table_3_1.stiffness")
-    c = rp.reference_value("intervertebral.thesis_table_3_1.damping")
+    values = tuple(values or thesis.reference_value("reflex.thesis.gain_sweep_values"))
+    k = thesis.reference_value("intervertebral.thesis_table_3_1.stiffness")
+    c = thesis.reference_value("intervertebral.thesis_table_3_1.damping")
     sweeps = _sweeps(values, kp_for_ld)
     keys = sorted({key for sweep in sweeps.values() for key in sweep.values()})
     cases = []
     for config in CONFIGS:
-        bushings = rp.locked_levels(k, c) if config == "locked" else {"stiffness": k, "damping": c}
+        bushings = thesis.locked_levels(k, c) if config == "locked" else {"stiffness": k, "damping": c}
         for key in keys:
             kp, kv, ld = (float(part.split("=")[1]) for part in key.split())
             cases.append({"label": f"{config} {key}",
                           "simulate": dict(duration=duration, perturbation=None, kp=kp, kv=kv, l_desired=ld, **bushings)})
-    traces = rp.run_cases(cases, model, workers)
+    traces = thesis.run_cases(cases, model, workers)
     pick = lambda sweep, config: {label: traces[f"{config} {key}"] for label, key in sweeps[sweep].items()}  # noqa: E731
 
-    plt = rp.pyplot()
+    plt = thesis.pyplot()
     figures = []
     detail = {"kv": ("fiber_velocity", "mean normalised fiber velocity", f"kv={values[1]:g}"),
               "kp": ("fiber_length", "mean normalised fiber length", f"kp={values[1]:g}")}
@@ -78,8 +78,8 @@ def run(out_dir, model=None, workers=2, inputs=None, duration=4.0, values=None, 
         rows = 2 if sweep in detail else 1
         fig, axes = plt.subplots(rows, 2, figsize=(12, 3.8 * rows), sharex=True, squeeze=False)
         styles = {"reflex off": {"color": "k", "ls": ":"}}
-        rp.plot_traces(axes[0, 0], pick(sweep, "locked"), "L5_S1_FE", "L5-S1 rotation (deg)", styles)
-        rp.plot_traces(axes[0, 1], pick(sweep, "free"), ylabel="total lumbar rotation (deg)", styles=styles)
+        thesis.plot_traces(axes[0, 0], pick(sweep, "locked"), "L5_S1_FE", "L5-S1 rotation (deg)", styles)
+        thesis.plot_traces(axes[0, 1], pick(sweep, "free"), ylabel="total lumbar rotation (deg)", styles=styles)
         axes[0, 0].set_title("other levels locked (thesis)", fontsize=9)
         axes[0, 1].set_title("all five levels free: S1-L1 (sum of levels)", fontsize=9)
         if sweep in detail:
@@ -92,10 +92,10 @@ def run(out_dir, model=None, workers=2, inputs=None, duration=4.0, values=None, 
             ax.set_xlabel("time (s)")
         fig.suptitle(f"Fig. {number.replace('_', '.')}: {sweep} sweep (equal gains for all muscles, no co-activation, "
                      f"k = {k:g} Nm/rad, c = {c:g} Nms/rad)")
-        figures.append(rp.save_figure(fig, f"{out_dir}/fig{number}_{sweep}_sweep.png"))
+        figures.append(thesis.save_figure(fig, f"{out_dir}/fig{number}_{sweep}_sweep.png"))
 
     def finals(sweep, config, key="L5_S1_FE"):
-        return {label: rp.final_deg(tr, key) for label, tr in pick(sweep, config).items()}
+        return {label: thesis.final_deg(tr, key) for label, tr in pick(sweep, config).items()}
 
     kv_locked = finals("kv", "locked")
     kv_peaks = {label: None if "error" in tr else float(np.max(np.abs(tr["levels_deg"]["L5_S1_FE"])))
@@ -104,21 +104,21 @@ def run(out_dir, model=None, workers=2, inputs=None, duration=4.0, values=None, 
     ld_locked, ld_free = finals("ld", "locked"), finals("ld", "free", "lumbar_rotation_deg")
     spread = _spread(kv_locked.values())
     kv_short = ("runs diverged" if spread is None else f"{'leaves' if spread < 0.1 else 'moves'} the end point, and the peak "
-                f"L5-S1 rotation {rp.trend(kv_peaks.values())} with kv")
+                f"L5-S1 rotation {thesis.trend(kv_peaks.values())} with kv")
     ours = {
         "kv": f"kv {kv_short} (locked; end-point spread {spread or float('nan'):.2f} deg; peaks {_listing(kv_peaks)} deg).",
         "kp": f"Final L5-S1 rotation (locked) {_listing(kp_locked)} deg; total lumbar rotation (free) {_listing(kp_free)} deg.",
         "ld": (f"Smallest |rotation|: {_smallest(ld_locked)} (locked, L5-S1), {_smallest(ld_free)} (free, total). Final L5-S1 "
                f"(locked) {_listing(ld_locked)} deg; total (free) {_listing(ld_free)} deg."),
     }
-    rows = [[key, rp.describe(traces[f"locked {key}"], "L5_S1_FE"), rp.describe(traces[f"free {key}"], "L5_S1_FE"),
-             rp.describe(traces[f"free {key}"])] for key in keys]
+    rows = [[key, thesis.describe(traces[f"locked {key}"], "L5_S1_FE"), thesis.describe(traces[f"free {key}"], "L5_S1_FE"),
+             thesis.describe(traces[f"free {key}"])] for key in keys]
     neutral = {g: float(series[0]) for g, series in traces[f"locked {_key(0.0, 0.0, 1.0)}"]["fiber_length"].items()} \
         if "error" not in traces[f"locked {_key(0.0, 0.0, 1.0)}"] else {}
-    summary = (f"kv {kv_short}; with kp the locked L5-S1 rotation {rp.trend(kp_locked.values())} and the free total "
-               f"rotation {rp.trend(kp_free.values())}; "
+    summary = (f"kv {kv_short}; with kp the locked L5-S1 rotation {thesis.trend(kp_locked.values())} and the free total "
+               f"rotation {thesis.trend(kp_free.values())}; "
                f"smallest rotation: {_smallest(ld_locked)} (locked), {_smallest(ld_free)} (free).")
-    return rp.section(
+    return thesis.section(
         THESIS_SUMMARY, summary,
         comparison=[[f"{s} sweep", THESIS[s], ours[s]] for s in ("kv", "kp", "ld")],
         figures=figures,

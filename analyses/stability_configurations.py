@@ -17,7 +17,7 @@ import warnings
 from pathlib import Path
 
 import trunk_drake as td
-from trunk_drake import reproduce as rp
+from trunk_drake import thesis
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.metadata import json_default
 from trunk_drake.muscle.short_range import ShortRangeStiffness
@@ -28,17 +28,17 @@ from trunk_drake.plots import plot_stability
 def configurations(model) -> dict[str, TrunkOptions]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        final, _ = rp.thesis_final_options(model)
-        truth = rp.reference_truth_options()
-    main = TrunkOptions(**final, **rp.thesis_gains())
+        final, _ = thesis.thesis_final_options(model)
+        truth = thesis.reference_truth_options()
+    main = TrunkOptions(**final, **thesis.thesis_gains())
     truth_options = TrunkOptions(**{k: v for k, v in truth.items() if k in {f.name for f in dataclasses.fields(TrunkOptions)}},
-                                 **rp.truth_gains())
+                                 **thesis.truth_gains())
     return {
         "README main job = thesis final model (k 125, co-activation 0.020, Table 4.3 gains, l_d 1)": main,
         "... reflexes off (intrinsic only, Fig. 4.13)": dataclasses.replace(main, kp=0.0, kv=0.0),
         "... set point at the neutral fiber length (l_d = neutral)": dataclasses.replace(main, l_desired="neutral"),
         "... with short-range stiffness": dataclasses.replace(main, srs=ShortRangeStiffness.from_reference()),
-        "... Table 4.2 (settling) gains": dataclasses.replace(main, **rp.thesis_gains("trunk_settling")),
+        "... Table 4.2 (settling) gains": dataclasses.replace(main, **thesis.thesis_gains("trunk_settling")),
         "synthetic-data truth (k 300, c 6, co-activation 0.03, truth gains)": truth_options,
         "... with a 30 ms reflex delay": dataclasses.replace(truth_options, reflex_delay=0.03),
     }

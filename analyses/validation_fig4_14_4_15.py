@@ -9,12 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
-from trunk_drake import reproduce as rp
+from trunk_drake import thesis
 from trunk_drake.data import models_dir
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.io.experiment import load_experiment
 from trunk_drake.optim.fit import Objective, goodness_of_fit, targets_from_trials
 from trunk_drake.optim.gains import GainLayout
+from trunk_drake.visual import animate_trial
 
 FIT = "fitted_gains_tables4_2_4_3"
 HELD_OUT = ("trial_3hz.csv",)
@@ -37,7 +38,17 @@ def _held_out(model, gains, files):
     layout = GainLayout.for_groups(tuple(gains["kp"]))
     objective = Objective(model, targets, layout, TrunkOptions(**experiment.options))
     vafs, frfs, series = goodness_of_fit(objective, layout.vector(gains), targets)
-    return {name: {**series[name], "vaf": vafs[name]["lumbar_rotation"], "frf": frfs.get(name)} for name in series}, experiment.noise_rad
+    return {name: {**series[name], "vaf": vafs[name]["lumbar_rotation"], "frf": frfs.get(name)} for name in series}, experiment
+
+
+def _animation(model, gains, experiment, out_dir) -> str:
+    """The held-out trial as a page: the data's trunk over the model's with the fitted gains (a report note)."""
+    trial = experiment.trials[0]
+    name = Path(trial.source).name
+    page = animate_trial(trial, Path(out_dir) / "held_out_trial.html", model, TrunkOptions(**{**experiment.options, **gains}),
+                         title=f"Held-out trial {name}: model with the fitted gains (data in blue)", label=name)
+    return (f"Animation of the held-out trial {name} (opens offline): [{page.name}]({Path(out_dir).name}/{page.name}), "
+            "the SYNTHETIC data's trunk in blue over the model's with the fitted gains.")
 
 
 def _noise_ceiling(data, noise_rad) -> float:
@@ -54,15 +65,16 @@ def run(out_dir, model=None, workers=2, inputs=None, held_out=HELD_OUT):
 
         model = load_model("sagittal")
     car = entry["numbers"]["car"]
-    trained = rp.load_fit_arrays(entry["numbers"]["files"]["car_arrays"])
+    trained = thesis.load_fit_arrays(entry["numbers"]["files"]["car_arrays"])
     for name, s in trained.items():
         s["vaf"] = car["vaf"][name]["lumbar_rotation"]
-    rp.log(f"  predicting the held-out trial(s) {', '.join(held_out)} with the fitted gains ...")
-    predicted, noise = _held_out(model, car["gains"], held_out)
+    thesis.log(f"  predicting the held-out trial(s) {', '.join(held_out)} with the fitted gains ...")
+    predicted, experiment = _held_out(model, car["gains"], held_out)
+    noise = experiment.noise_rad
     runs = {**{f"{Path(n).stem} (fitted)": s for n, s in trained.items()},
             **{f"{Path(n).stem} (held out)": s for n, s in predicted.items()}}
 
-    plt = rp.pyplot()
+    plt = thesis.pyplot()
     fig, axes = plt.subplots(len(runs), 1, figsize=(10, 2.8 * len(runs)), squeeze=False)
     for ax, (label, s) in zip(axes[:, 0], runs.items()):
         ax.plot(s["time"], np.degrees(s["data"]), color="0.6", lw=1.5, label="synthetic data")
@@ -73,7 +85,7 @@ def run(out_dir, model=None, workers=2, inputs=None, held_out=HELD_OUT):
         ax.legend(fontsize=7, loc="upper right")
     axes[-1, 0].set_xlabel("time (s)")
     fig.suptitle("Fig. 4.14: time-domain fit, fitted gains on the SYNTHETIC reference data")
-    fig_time = rp.save_figure(fig, f"{out_dir}/fig4_14_time_domain.png")
+    fig_time = thesis.save_figure(fig, f"{out_dir}/fig4_14_time_domain.png")
 
     fig, (ax_g, ax_p) = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
     slopes = {}
@@ -103,9 +115,9 @@ def run(out_dir, model=None, workers=2, inputs=None, held_out=HELD_OUT):
     for ax in (ax_g, ax_p):
         ax.grid(alpha=0.3, which="both")
     fig.suptitle("Fig. 4.15: FRF lumbar rotation / platform displacement (data: 95 % bounds shaded)")
-    fig_frf = rp.save_figure(fig, f"{out_dir}/fig4_15_frf.png")
+    fig_frf = thesis.save_figure(fig, f"{out_dir}/fig4_15_frf.png")
 
-    thesis_vaf = rp.reference_value("reflex.thesis.vaf_final")
+    thesis_vaf = thesis.reference_value("reflex.thesis.vaf_final")
     ceilings = {label: _noise_ceiling(s["data"], noise) for label, s in runs.items()}
     vaf_text = "; ".join(f"{label} {100 * s['vaf']:.1f} % (noise ceiling {100 * ceilings[label]:.1f} %)" for label, s in runs.items())
     slope_text = "; ".join(f"{label}: data {v['data']:+.2f}, model {v['model']:+.2f}" for label, v in slopes.items())
@@ -116,7 +128,7 @@ def run(out_dir, model=None, workers=2, inputs=None, held_out=HELD_OUT):
                            f"{v['model_minus_data_phase_deg']['max_abs']:.1f})" for label, v in slopes.items())
     ours = (f"VAF of lumbar rotation: {vaf_text}. Gain slope at 0.2-1 Hz: {slope_text}. The model is the data's own "
             "structure with fitted gains, so the VAF measures how well the fit recovers a known truth, not realism.")
-    return rp.section(
+    return thesis.section(
         THESIS, ours,
         comparison=[["VAF (lumbar rotation, 0.2-1 Hz)", f"{thesis_vaf:.2f} % (measured data, 6 subjects averaged)",
                      "; ".join(f"{100 * s['vaf']:.1f} % ({label})" for label, s in runs.items() if "fitted" in label) + " (synthetic)"],
@@ -126,11 +138,12 @@ def run(out_dir, model=None, workers=2, inputs=None, held_out=HELD_OUT):
                     ["largest gain at", "natural frequency ~1 Hz (van Drunen et al.)", peak_text],
                     ["model minus data phase", "negative: the model lags more (more damped)", phase_text]],
         figures=[fig_time, fig_frf],
-        notes=[rp.SYNTHETIC_NOTE,
+        notes=[thesis.SYNTHETIC_NOTE,
                "VAF here is computed about the means (offsets removed, as the thesis removed offsets); the thesis' eq. 3.3 divides "
                "by the sum of squares of the data. The noise ceiling is the VAF a perfect model reaches on data with the "
                f"reference data's {np.degrees(noise):.2f} deg white noise.",
-               "Fitted and held-out trials share the synthetic data's conditions (models/reference/conditions.toml)."],
+               "Fitted and held-out trials share the synthetic data's conditions (models/reference/conditions.toml).",
+               _animation(model, car["gains"], experiment, out_dir)],
         numbers={"vaf": {label: s["vaf"] for label, s in runs.items()}, "noise_ceiling_vaf": ceilings, "frf_slopes": slopes,
                  "thesis_vaf_percent": thesis_vaf, "gains": car["gains"],
                  "frf": {label: {"frequencies_hz": s["frf"]["frequencies"], "data_gain_deg_per_m": np.degrees(np.abs(s["frf"]["data"])),

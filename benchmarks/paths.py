@@ -1,12 +1,16 @@
 """Benchmark: lengths + moment arms of all 210 MyoTorso muscles at one pose; prints JSON.
 
-Ours: `TrunkModel.path_state(q)` (sets q in the Drake context, reads body poses, vectorised
-paths). MuJoCo (same model, same pose): mj_kinematics + mj_comPos + mj_tendon + mj_transmission.
+Ours: `TrunkModel.path_state(q)` (MyoTorso: compiled body kinematics and vectorised paths, one
+numba call each). MuJoCo (same model, same pose): mj_kinematics + mj_comPos + mj_tendon + mj_transmission.
+With `../shared/reference/lumbar_c_210/Lumbar_C_210.osim` present, also the original OpenSim
+model read by trunk-drake (OpenSim path semantics and wrapping, poses from the plant), same configurations.
 """
 
 import json
+import os
 import platform
 import time
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -30,11 +34,17 @@ def main():
     m = compile_myotorso()
     d = mujoco.MjData(m)
     rng = np.random.default_rng(0)
-    for dofs in ("sagittal", "spine3d"):
-        model = td.load_model(dofs=dofs)
-        q = np.array([rng.uniform(*c.range) * 0.5 if c.source_joint else 0.0 for c in model.coordinate_info])
-        best, median = best_of(lambda: model.path_state(q))
-        out[f"trunk_drake_{dofs}_ms"] = {"best": best * 1e3, "median": median * 1e3}
+    osim = Path(__file__).resolve().parents[2] / "shared" / "reference" / "lumbar_c_210" / "Lumbar_C_210.osim"
+    sources = {"trunk_drake": None, "lumbar_c_210_osim": osim if osim.exists() else None}
+    for label, source in sources.items():
+        if label != "trunk_drake" and source is None:
+            continue
+        for dofs in ("sagittal", "spine3d"):
+            model = td.load_model(source, dofs=dofs)
+            q = np.array([rng.uniform(*c.range) * 0.5 if c.source_joint else 0.0 for c in model.coordinate_info])
+            best, median = best_of(lambda: model.path_state(q))
+            out[f"{label}_{dofs}_ms"] = {"best": best * 1e3, "median": median * 1e3}
+    out["load_average"] = os.getloadavg()[0]
 
     def mj():
         mujoco.mj_kinematics(m, d)

@@ -1,13 +1,18 @@
-"""Benchmark: a 20 s, 0.2-1 Hz pelvis-perturbation trial with all 210 muscles and stretch reflexes.
+"""Benchmark: the README's main job (20 s, 0.2-1 Hz pelvis perturbation, 210 muscles, stretch
+reflexes) and the synthetic reference data's upright truth configuration, with their accuracy.
 
-Prints JSON: trunk-drake with rigid tendons (the target: real-time factor >= 5) and with
-compliant tendons, and MuJoCo on the same MyoTorso (its own muscle model, rigid tendons, no
-reflexes, default 2 ms Euler step) measured in the same run. Usage:
+Prints JSON: per trial the integrator's steps and derivative evaluations, wall time, real-time
+factor, its ratio to MuJoCo's on the same MyoTorso (its own muscle model, rigid tendons, no
+reflexes, default 2 ms Euler step) measured in the same run (before and after, averaged), and
+the RMS lumbar-rotation difference from the accurate reference (trunk_drake.accuracy, target
+<= 0.01 deg); the main job with compliant tendons; the microseconds of one derivative
+evaluation (minimum over repetitions); and the machine's load average. Usage:
     python benchmarks/simulate.py [--duration 20] [--compliant-duration 4]
 """
 
 import argparse
 import json
+import os
 import platform
 import time
 
@@ -15,17 +20,39 @@ import mujoco
 import numpy as np
 
 import trunk_drake as td
-from trunk_drake.data import models_dir
+from trunk_drake.accuracy import TOLERANCE_DEG, rms_deviation_deg, trial_options
+from trunk_drake.diagram import TrunkOptions, build_trunk_diagram
 from trunk_drake.model.myotorso import compile_myotorso
-from trunk_drake.optim.static import coactivation
-from trunk_drake.simulation import DEFAULT_GAINS, load_reflex_gains, simulate
+from trunk_drake.simulation import _perturbation, simulate
 
 
-def trunk_drake_run(model, duration, tendon, feedforward, gains):
-    result = simulate(model, duration=duration, bandwidth=1.0, seed=0, tendon=tendon, feedforward=feedforward,
-                      stiffness=125.0, damping=7.5, **gains)
+def trunk_drake_run(model, duration, trial, **overrides):
+    result = simulate(model, duration=duration, **{**trial_options(model, trial), **overrides})
     s = result.summary()
-    return {k: s[k] for k in ("wall_time_s", "sim_time_s", "steps", "derivative_evaluations", "real_time_factor")}
+    out = {k: s[k] for k in ("wall_time_s", "sim_time_s", "steps", "derivative_evaluations", "real_time_factor")}
+    out["rms_deviation_deg"] = rms_deviation_deg(result, trial)
+    return out
+
+
+def evaluation_us(model, trial, repetitions=2000):
+    """Microseconds of one derivative evaluation of the whole diagram (q changed every time), minimum of 5 runs."""
+    options = trial_options(model, "folding")
+    signal = _perturbation("multisine", options.pop("bandwidth"), options.pop("seed"))
+    diagram = build_trunk_diagram(model, TrunkOptions(**options), signal).diagram
+    context = diagram.CreateDefaultContext()
+    context.SetTime(3.0)
+    x = context.get_continuous_state_vector().CopyToVector()
+    x[:5], x[10:] = 0.01, 0.03
+    derivatives = diagram.AllocateTimeDerivatives()
+    best = np.inf
+    for _ in range(5):
+        t0 = time.perf_counter()
+        for i in range(repetitions):
+            x[0] += 1e-12 if i % 2 else -1e-12
+            context.SetContinuousState(x)
+            diagram.CalcTimeDerivatives(context, derivatives)
+        best = min(best, (time.perf_counter() - t0) / repetitions)
+    return best * 1e6
 
 
 def mujoco_run(duration):
@@ -47,17 +74,29 @@ def main():
     parser.add_argument("--compliant-duration", type=float, default=4.0)
     args = parser.parse_args()
     model = td.load_model("sagittal")
-    gains = load_reflex_gains(models_dir() / DEFAULT_GAINS)
-    feedforward = coactivation(model, 0.02)
-    trunk_drake_run(model, 0.5, "rigid", feedforward, gains)  # warm-up: numba compilation, caches
+    load_before = os.getloadavg()
+    trunk_drake_run(model, 0.5, "folding")  # warm-up: numba compilation, caches
+    mujoco_before = mujoco_run(args.duration)
+    runs = {
+        "rigid": trunk_drake_run(model, args.duration, "folding"),
+        "upright": trunk_drake_run(model, args.duration, "upright"),
+        "compliant": trunk_drake_run(model, args.compliant_duration, "folding", tendon="compliant"),
+    }
+    mujoco_after = mujoco_run(args.duration)
+    mujoco_rtf = 0.5 * (mujoco_before["real_time_factor"] + mujoco_after["real_time_factor"])
+    for name in ("rigid", "upright"):
+        runs[name]["ratio_to_mujoco"] = runs[name]["real_time_factor"] / mujoco_rtf
+    runs["compliant"].pop("rms_deviation_deg")  # the reference is the rigid-tendon model's
     out = {
         "machine": platform.machine(),
-        "trial": {"bandwidth_hz": 1.0, "muscles": model.n_muscles, "reflex_gains": DEFAULT_GAINS,
-                  "coactivation_min_activation": 0.02, "stiffness_nm_per_rad": 125.0},
-        "rigid": trunk_drake_run(model, args.duration, "rigid", feedforward, gains),
-        "compliant": trunk_drake_run(model, args.compliant_duration, "compliant", feedforward, gains),
-        "mujoco_myotorso": mujoco_run(args.duration),
-        "target_rigid_real_time_factor": 5.0,
+        "load_average_1_5_15_min": {"before": load_before, "after": os.getloadavg()},
+        "trials": {"rigid": "README main job: thesis gains, co-activation 0.02, 125 Nm/rad (folds into flexion)",
+                   "upright": "synthetic reference truth configuration (models/reference), seed 11",
+                   "compliant": "the main job with compliant tendons"},
+        **runs,
+        "evaluation_us": evaluation_us(model, "folding"),
+        "mujoco_myotorso": {"before": mujoco_before, "after": mujoco_after, "mean_real_time_factor": mujoco_rtf},
+        "targets": {"rigid_ratio_to_mujoco": 0.5, "compliant_real_time_factor": 3.0, "rms_deviation_deg": TOLERANCE_DEG},
     }
     print(json.dumps(out, indent=2))
 

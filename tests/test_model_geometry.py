@@ -15,16 +15,21 @@ N_POSES = 300
 KNOWN_ASYMMETRIC = {"LTpT_T12"}
 
 
-def mujoco_oracle(dofs):
-    """Compiled MyoTorso with couplings disabled, plus the sagittal pelvis slide when needed."""
+def compile_mujoco(pelvis_slide: bool):
+    """Compiled MyoTorso (its equality constraints active), with the sagittal pelvis slide if asked."""
     from myo_sim.build.compose import build_spec
 
     spec = build_spec("myotorso")
-    if dofs == "sagittal":
+    if pelvis_slide:
         joint = spec.body("sacrum").add_joint()
         joint.name, joint.type, joint.axis = "pelvis_tx", mujoco.mjtJoint.mjJNT_SLIDE, [1.0, 0.0, 0.0]
         joint.range = [-1.0, 1.0]
-    m = spec.compile()
+    return spec.compile()
+
+
+def mujoco_oracle(dofs):
+    """Compiled MyoTorso with couplings disabled, plus the sagittal pelvis slide when needed."""
+    m = compile_mujoco(dofs == "sagittal")
     m.eq_active0[:] = 0
     return m, mujoco.MjData(m)
 
@@ -158,3 +163,31 @@ def test_bad_input_errors_and_range_warning():
         fresh.muscle_lengths([0, 0, 0.6, 0, 0, 0])
     messages = [str(w.message) for w in caught]
     assert len(messages) == 1 and "L4_L5_FE" in messages[0]
+
+
+def test_path_points_match_mujoco_wrap_points(setup):
+    """The drawn polylines (sites and wrap tangent points) are MuJoCo's tendon path points."""
+    model, m, d = setup
+    layout = model.path_layout
+    worst, tangents_seen = 0.0, 0
+    for q in random_poses(model, 30, seed=13):
+        points = model.path_points(q)
+        set_mujoco_pose(m, d, model, q)
+        for i, route in enumerate(layout.routes):
+            ours = []
+            for kind, k in route:
+                if kind == "site":
+                    ours.append(points.sites[k])
+                elif points.wrap_lengths[k] >= 0:
+                    ours += list(points.tangents[k])
+                    tangents_seen += 1
+            adr, num = d.ten_wrapadr[m.actuator_trnid[i, 0]], d.ten_wrapnum[m.actuator_trnid[i, 0]]
+            theirs = d.wrap_xpos.reshape(-1, 3)[adr:adr + num]
+            assert len(ours) == len(theirs), f"{model.muscles[i]}: {len(ours)} path points, MuJoCo {len(theirs)}"
+            worst = max(worst, np.abs(np.array(ours) - theirs).max())
+            length = np.linalg.norm(np.diff(ours, axis=0), axis=1).sum() + sum(
+                max(points.wrap_lengths[k], 0.0) - (np.linalg.norm(np.diff(points.tangents[k], axis=0)) if points.wrap_lengths[k] >= 0 else 0.0)
+                for kind, k in route if kind == "wrap")
+            assert abs(length - d.actuator_length[i]) < 1e-9, model.muscles[i]
+    assert worst < 1e-9, f"largest path-point difference {worst:.3e} m"
+    assert tangents_seen > 0

@@ -5,7 +5,7 @@ import json
 import numpy as np
 
 import trunk_drake as td
-from trunk_drake.model.lumbar_c210 import compare_hill_parameters
+from lumbar_c210_oracle import compare_hill_parameters
 
 # Muscles whose MyoTorso path differs from the OpenSim original (measured at the neutral pose):
 #   LTpT_T1..T5: OpenSim wraps them over chest ellipsoids, MyoTorso over spheres (0.4-0.9 %);

@@ -7,6 +7,7 @@ import pytest
 
 import trunk_drake as td
 from trunk_drake import reproduce as rp
+from trunk_drake import thesis
 from trunk_drake.cli import build_parser
 from trunk_drake.commands import reproduce as reproduce_command
 
@@ -47,10 +48,10 @@ def test_runner_writes_sections_figures_and_skips_finished_experiments(tmp_path,
 def test_sweep_records_divergence_and_goes_on(sagittal):
     cases = [{"label": "diverges", "simulate": dict(duration=5.0, perturbation=None, stiffness=0.0, damping=0.0, strength_scale=1e-3)},
              {"label": "holds", "simulate": dict(duration=0.2, perturbation=None, stiffness=800.0)}]
-    traces = rp.run_cases(cases, sagittal, workers=1)
-    assert traces["diverges"]["diverged_at"] > 0 and rp.describe(traces["diverges"]).startswith("diverged at t=")
-    assert rp.final_deg(traces["diverges"]) is None
-    assert np.isfinite(rp.final_deg(traces["holds"], "L5_S1_FE"))
+    traces = thesis.run_cases(cases, sagittal, workers=1)
+    assert traces["diverges"]["diverged_at"] > 0 and thesis.describe(traces["diverges"]).startswith("diverged at t=")
+    assert thesis.final_deg(traces["diverges"]) is None
+    assert np.isfinite(thesis.final_deg(traces["holds"], "L5_S1_FE"))
 
 
 def test_cli_and_registry():

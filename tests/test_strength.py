@@ -11,7 +11,8 @@ from trunk_drake.cli import main
 from trunk_drake.model.trunk_model import load_model
 from trunk_drake.optim.static import MomentBalance, StaticOptimizer, with_required
 from trunk_drake.optim.strength import (
-    DIRECTIONS, StrengthProblem, acromion_half_breadth, in_vivo_comparison, isometric_strength, load_case, max_load,
+    DEFLECTION_TOLERANCE_DEG, DIRECTIONS, VARIANTS, StrengthProblem, acromion_half_breadth, in_vivo_comparison,
+    isometric_strength, load_case, max_load, strength_variants,
 )
 
 
@@ -44,7 +45,7 @@ def test_direct_maximum_equals_the_sweep_within_one_step(results, direction):
 
 
 def test_sensitivity_is_the_derivative_of_the_maximum(spine3d, results):
-    optimizer = StaticOptimizer(spine3d)
+    optimizer = StaticOptimizer(spine3d, min_activation=0.0)  # as isometric_strength's maxima
     problem = StrengthProblem(optimizer, load_case(spine3d, "extension"))
     coordinate = results["extension"].limiting_coordinate
     help_ = np.zeros(len(problem.coordinates))
@@ -101,3 +102,71 @@ def test_cli_strength_json(capsys):
     for r in report["results"].values():
         assert r["max_force_N"] > 0 and r["in_vivo"] and r["limiting_coordinate"]
     assert "acromion" in report["results"]["lateral"]["variants"]
+
+
+# ------------------------------------------------------------------ rhythm, deflection, passive force
+
+def test_deflection_tolerance_adds_the_bushing_moment_to_the_one_joint_answer():
+    # flexor 40 Nm capacity; the joint's bushing may carry up to 100 Nm/rad x 2 deg more
+    limit = 100.0 * np.radians(2.0)
+    exact = MomentBalance([[0.05], [-0.04]], [800.0, 600.0], [0.0, 0.0], [0.0], ("hinge",), ("flexor", "extensor"))
+    deflecting = MomentBalance([[0.05], [-0.04]], [800.0, 600.0], [0.0, 0.0], [0.0], ("hinge",), ("flexor", "extensor"),
+                               deflection=[[1.0]], deflection_limit=[limit])
+    assert max_load(exact, [-0.3], 0.0)[0] == pytest.approx(40.0 / 0.3, rel=1e-7)
+    assert max_load(deflecting, [-0.3], 0.0)[0] == pytest.approx((40.0 + limit) / 0.3, rel=1e-7)
+
+
+@pytest.fixture(scope="module")
+def variants():
+    return strength_variants()
+
+
+def test_every_variant_reports_both_directions_with_and_without_passive_force(variants):
+    assert set(variants) == set(VARIANTS)
+    for name, results in variants.items():
+        assert set(results) == {"extension", "flexion"}, name
+        for r in results.values():
+            assert r.max_force > 0 and r.variants["without_passive"]["max_force_N"] > 0
+
+
+def test_the_rhythm_balances_one_coordinate_and_is_strongest_in_flexion(variants):
+    rhythm, exact = variants["rhythm"], variants["independent levels, exact"]
+    assert rhythm["flexion"].limiting_coordinate == "lumbar_FE" and list(rhythm["flexion"].sensitivity) == ["lumbar_FE"]
+    # one weighted balance instead of five: the levels help each other
+    assert rhythm["flexion"].max_force > 5 * exact["flexion"].max_force
+
+
+def test_tolerated_deflection_lies_between_exact_balance_and_what_the_bushings_allow(spine3d, variants):
+    name = f"independent levels, {DEFLECTION_TOLERANCE_DEG:g} deg deflection"
+    for direction in ("extension", "flexion"):
+        exact, tolerant = variants["independent levels, exact"][direction], variants[name][direction]
+        assert exact.max_force < tolerant.max_force
+    tolerance = np.radians(DEFLECTION_TOLERANCE_DEG)
+    optimizer = StaticOptimizer(spine3d, min_activation=0.0, deflection_tolerance=tolerance)
+    problem = StrengthProblem(optimizer, load_case(spine3d, "flexion"))
+    frame = problem.solve(0.99 * variants[name]["flexion"].max_force)
+    assert np.abs(frame.deflection_moments).max() <= 100.0 * tolerance + 1e-9  # each bushing within 2 deg
+    assert np.abs(frame.deflection_moments).max() > 0.5 * 100.0 * tolerance  # and the bushings are used
+    assert np.abs(frame.residuals).max() < 1e-6
+
+
+def test_an_activation_floor_costs_strength(variants):
+    floor = variants["independent levels, exact, activation floor 0.01 (thesis)"]
+    for direction in ("extension", "flexion"):
+        assert floor[direction].max_force < variants["independent levels, exact"][direction].max_force
+
+
+def test_cli_strength_rhythm(capsys):
+    assert main(["strength", "--dofs", "rhythm", "--json", "--no-sweep"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["dofs"] == "rhythm" and set(report["results"]) == {"extension", "flexion"}
+    assert "lumbar rhythm" in report["configuration"] and "activations in [0, 1]" in report["configuration"]
+    for r in report["results"].values():
+        assert r["limiting_coordinate"] == "lumbar_FE" and "without_passive" in r["variants"]
+    assert main(["strength", "--dofs", "rhythm", "--tolerance-deg", "2", "--no-sweep"]) == 2
+    assert "independent levels" in capsys.readouterr().err
+    assert main(["strength", "--dofs", "spine3d", "--tolerance-deg", "2", "--no-passive", "--direction", "flexion", "--json",
+                 "--no-sweep"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert "2 deg on its bushing" in report["configuration"] and "without passive" in report["configuration"]
+    assert "with_passive" in report["results"]["flexion"]["variants"]

@@ -1,22 +1,33 @@
-"""trunk-drake: neuromusculoskeletal simulation of the seated human lumbar spine on Drake."""
+"""trunk-drake: neuromusculoskeletal simulation of the seated human lumbar spine on Drake.
 
-from trunk_drake.model.trunk_model import TrunkModel, load_model
-from trunk_drake.optim.fit import fit_reflex_gains
-from trunk_drake.optim.stability import StabilityResult, stability
-from trunk_drake.optim.static import coactivation, static_optimization
-from trunk_drake.optim.strength import isometric_strength
-from trunk_drake.simulation import SimulationResult, simulate
+The names below are imported on first use, so that `trunk-drake` (and any submodule) starts
+without loading Drake until it needs it.
+"""
 
-__all__ = [
-    "TrunkModel",
-    "load_model",
-    "simulate",
-    "SimulationResult",
-    "static_optimization",
-    "coactivation",
-    "isometric_strength",
-    "fit_reflex_gains",
-    "stability",
-    "StabilityResult",
-]
+from importlib import import_module
 
+_API = {
+    "TrunkModel": "trunk_drake.model.trunk_model",
+    "load_model": "trunk_drake.model.trunk_model",
+    "simulate": "trunk_drake.simulation",
+    "SimulationResult": "trunk_drake.simulation",
+    "static_optimization": "trunk_drake.optim.static",
+    "coactivation": "trunk_drake.optim.static",
+    "isometric_strength": "trunk_drake.optim.strength",
+    "fit_reflex_gains": "trunk_drake.optim.fit",
+    "stability": "trunk_drake.optim.stability",
+    "StabilityResult": "trunk_drake.optim.stability",
+    "animate": "trunk_drake.visual",
+}
+
+__all__ = list(_API)
+
+
+def __getattr__(name: str):
+    if name not in _API:
+        raise AttributeError(f"module 'trunk_drake' has no attribute {name!r}")
+    return getattr(import_module(_API[name]), name)
+
+
+def __dir__():
+    return sorted([*globals(), *_API])

@@ -5,11 +5,10 @@ Cartesian product makes the cases) and optional ``[[cases]]`` (explicit extra ca
 onto the defaults). Case parameters (CASE_DEFAULTS): direction, strength_scale,
 min_activation, p, include_passive, level (thoracic landmarks carrying the sagittal load),
 shoulder ("model" | "acromion"), lumbar_flexion_deg (total lumbar flexion, spread equally
-over the five levels), sweep, step, dofs.
+over the five levels, or along the rhythm), sweep, step, dofs ("spine3d", "sagittal", "rhythm").
 
-Runs on local processes (concurrent.futures, one model built per worker by the initializer)
-or on an existing Dask distributed cluster (``cluster="tcp://host:8786"``; each worker
-builds its model on first use and caches it). Drake objects never travel: workers receive
+Runs on trunk_drake.parallel's worker pool: local processes or an existing Dask distributed
+cluster (``cluster="tcp://host:8786"``), each worker building its model once. Workers receive
 parameter dicts and return plain rows. Each finished case is appended to
 ``<out>/results.jsonl`` at once; a rerun skips cases already there (``retry_failed`` reruns
 the failed ones); a failing case records its error and the batch goes on.
@@ -22,28 +21,24 @@ import csv
 import hashlib
 import itertools
 import json
-import multiprocessing
 import os
-import signal
 import socket
-import threading
 import time
 import tomllib
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 import numpy as np
 
 from trunk_drake.metadata import json_default
+from trunk_drake.model.levels import LEVELS
+from trunk_drake.model.plant import DOFS
+from trunk_drake.parallel import WorkerLost, WorkerPool
 
 CASE_DEFAULTS = {
     "direction": "extension", "strength_scale": 1.0, "min_activation": 0.01, "p": 2.0, "include_passive": True,
     "level": ["T6", "T7"], "shoulder": "model", "lumbar_flexion_deg": 0.0, "sweep": False, "step": 10.0, "dofs": "spine3d",
 }
 RESULTS = "results.jsonl"
-_MODELS: dict = {}  # dofs -> TrunkModel, per worker process
-_LOCK = threading.Lock()
 
 
 # ---------------------------------------------------------------------------- cases
@@ -54,23 +49,37 @@ def case_id(params: dict) -> str:
 
 
 def _case(params: dict, where: str) -> dict:
+    _check_keys(params, where)
+    case = {**CASE_DEFAULTS, **params}
+    if case["dofs"] not in DOFS:
+        raise ValueError(f"{where}: dofs = {case['dofs']!r}; expected one of {DOFS}")
+    return {"case_id": case_id(case), **case}
+
+
+def _check_keys(params: dict, where: str) -> None:
     unknown = set(params) - set(CASE_DEFAULTS)
     if unknown:
         raise ValueError(f"{where}: unknown case parameter(s) {sorted(unknown)}; known: {sorted(CASE_DEFAULTS)}")
-    case = {**CASE_DEFAULTS, **params}
-    return {"case_id": case_id(case), **case}
 
 
 def load_grid(path) -> list[dict]:
     """The cases of a grid file, in a stable order, each with its ``case_id``."""
     path = Path(path)
-    with path.open("rb") as f:
-        spec = tomllib.load(f)
+    if not path.is_file():
+        raise (ValueError if path.exists() else FileNotFoundError)(
+            f"grid {path} is {'not a file' if path.exists() else 'missing'}: give a grid file (TOML), "
+            "e.g. models/strength_grid_example.toml")
+    try:
+        spec = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise ValueError(f"{path} is not valid TOML: {err}") from None
     unknown = set(spec) - {"defaults", "grid", "cases"}
     if unknown:
         raise ValueError(f"{path}: unknown section(s) {sorted(unknown)}; expected [defaults], [grid], [[cases]]")
     defaults = spec.get("defaults", {})
     grid = spec.get("grid", {})
+    _check_keys(defaults, f"{path} [defaults]")
+    _check_keys(grid, f"{path} [grid]")
     for key, values in grid.items():
         if not isinstance(values, list) or not values:
             raise ValueError(f"{path}: [grid] {key} must be a non-empty list, got {values!r}")
@@ -86,42 +95,14 @@ def load_grid(path) -> list[dict]:
 
 # ------------------------------------------------------------------------ worker side
 
-def _model(dofs: str):
-    from trunk_drake.model.trunk_model import load_model
-
-    if dofs not in _MODELS:  # built once per worker process; run_case's lock keeps threads apart
-        _MODELS[dofs] = load_model(dofs=dofs)
-    return _MODELS[dofs]
-
-
-def _init_worker(dofs_list) -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's business: it stops the batch
-    for dofs in dofs_list:
-        _model(dofs)
-
-
-def run_case(case: dict) -> dict:
-    """Compute one case; never raises: a failure becomes an error row.
-
-    Threads of one process (e.g. a Dask LocalCluster with processes=False) run cases one at
-    a time: pybind11, under pydrake, is not thread-safe everywhere.
-    """
-    with _LOCK:
-        return _run_case(case)
-
-
-def _run_case(case: dict) -> dict:
-    from trunk_drake.model.plant import LEVELS
+def run_case(model, case: dict) -> dict:
+    """Compute one case on `model` (of the case's dofs); never raises: a failure becomes an error row."""
     from trunk_drake.optim.strength import isometric_strength
 
     start = time.perf_counter()
-    row = {"case_id": case["case_id"], "params": {k: v for k, v in case.items() if k != "case_id"},
-           "worker": f"{socket.gethostname()}:{os.getpid()}"}
+    row = _row(case, worker=f"{socket.gethostname()}:{os.getpid()}")
     try:
-        model = _model(case["dofs"])
-        q = np.zeros(len(model.coordinates))
-        for level in LEVELS:
-            q[model.coordinates.index(f"{level}_FE")] = np.radians(case["lumbar_flexion_deg"]) / len(LEVELS)
+        q = model.posture(np.radians(case["lumbar_flexion_deg"]))
         result = isometric_strength(
             model, (case["direction"],), q=q, level=tuple(case["level"]), shoulder=case["shoulder"], sweep=case["sweep"],
             step=case["step"], p=case["p"], min_activation=case["min_activation"],
@@ -135,6 +116,10 @@ def _run_case(case: dict) -> dict:
         row.update(status="error", error=f"{type(err).__name__}: {err}")
     row["time_s"] = time.perf_counter() - start
     return row
+
+
+def _row(case: dict, **fields) -> dict:
+    return {"case_id": case["case_id"], "params": {k: v for k, v in case.items() if k != "case_id"}, **fields}
 
 
 # ------------------------------------------------------------------------ bookkeeping
@@ -172,8 +157,11 @@ def write_csv(rows: list[dict], out_dir) -> Path:
 
 def run_batch(cases: list[dict], out_dir, cluster: str | None = None, workers: int | None = None,
               progress: bool = True, retry_failed: bool = False) -> dict:
-    """Run the cases not yet in ``<out_dir>/results.jsonl``; returns counts and the output paths."""
+    """Run the cases not yet in ``<out_dir>/results.jsonl``; returns counts (``failed``: in this
+    run, ``failed_total``: among all the cases' rows) and the output paths."""
     from tqdm import tqdm
+
+    from trunk_drake.model.trunk_model import load_model
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -193,37 +181,21 @@ def run_batch(cases: list[dict], out_dir, cluster: str | None = None, workers: i
             counts["ok" if row["status"] == "ok" else "failed"] += 1
             bar.update(1)
 
-        if pending:
-            (_run_dask if cluster else _run_local)(pending, record, cluster if cluster else workers)
-    counts.update(results=str(out / RESULTS), csv=str(write_csv(rows, out)))
+        for dofs in sorted({c["dofs"] for c in pending}):
+            _run(load_model(dofs=dofs), [c for c in pending if c["dofs"] == dofs], record, cluster, workers)
+    wanted = {c["case_id"] for c in cases}
+    counts.update(failed_total=sum(r["status"] != "ok" for r in rows if r["case_id"] in wanted),
+                  results=str(out / RESULTS), csv=str(write_csv(rows, out)))
     return counts
 
 
-def _run_local(pending, record, workers) -> None:
-    workers = workers or min(len(pending), os.cpu_count() or 1)
-    dofs = sorted({c["dofs"] for c in pending})
-    executor = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_init_worker, initargs=(dofs,))
+def _run(model, cases, record, cluster, workers) -> None:
+    workers = workers or min(len(cases), os.cpu_count() or 1)
     try:
-        for future in as_completed([executor.submit(run_case, c) for c in pending]):
-            record(future.result())  # run_case never raises
-    except BrokenProcessPool as err:
-        raise RuntimeError("a worker process died (out of memory or a crash in native code); finished cases are saved: "
-                           "rerun to resume, with --workers 1 to find the case if it recurs") from err
-    finally:
-        executor.shutdown(wait=False, cancel_futures=True)
-
-
-def _run_dask(pending, record, address) -> None:
-    from dask.distributed import Client, as_completed as dask_completed
-
-    with Client(address) as client:
-        futures = client.map(run_case, pending, pure=False)
-        cases = dict(zip((f.key for f in futures), pending))
-        for future in dask_completed(futures):
-            try:
-                record(future.result())
-            except Exception as err:  # noqa: BLE001 - the worker running this case died
-                case = cases[future.key]
-                record({"case_id": case["case_id"], "params": {k: v for k, v in case.items() if k != "case_id"},
-                        "status": "error", "error": f"worker lost: {type(err).__name__}: {err}"})
+        with WorkerPool(model, workers, cluster) as pool:
+            for i, row, error in pool.completed(run_case, cases):
+                record(row if error is None else _row(cases[i], status="error",
+                                                      error=f"worker lost: {type(error).__name__}: {error}"))
+    except WorkerLost as err:
+        raise RuntimeError(f"{err}; finished cases are saved: rerun to resume, with --workers 1 to find the case "
+                           "if it recurs") from err

@@ -27,6 +27,7 @@ from trunk_drake.systems.effects import GolgiTendonFeedback, SeatCompliance, Tru
 from trunk_drake.systems.reflex import ExcitationMixer, StretchReflex, gains_by_group
 
 PELVIS_MODES = ("prescribed", "force", "seat", "none")  # seat: pelvis on a spring-damper to the platform
+SLIDING_PELVIS = ("sagittal", "rhythm")  # configurations with the pelvis_tx slide
 EXTENSOR_GROUPS = ("sacrospinalis", "transversospinalis", "quadratus_lumborum")
 FLEXOR_GROUPS = ("rectus_abdominis", "external_oblique", "internal_oblique", "psoas_major")
 THESIS_PELVIS_MASS = 10_000.0  # kg, seed section 3.4.2
@@ -98,7 +99,8 @@ def _desired_length(model, opts: TrunkOptions, params) -> np.ndarray:
 def rotation_coordinates(model) -> np.ndarray:
     """Indices of the lumbar flexion-extension coordinates (any model: its hinge coordinates).
 
-    Bushings act on them and their sum is the lumbar rotation (S1-L1 link to the vertical)."""
+    Their sum is the lumbar rotation (S1-L1 link to the vertical): the five level angles, or the
+    rhythm's lumbar_FE. The bushings act on the level angles, ``model.level_matrix @ q``."""
     names = model.coordinates
     fe = [names.index(f"{lvl}_FE") for lvl in LEVELS if f"{lvl}_FE" in names]
     return np.array(fe or [i for i, c in enumerate(model.coordinate_info) if c.kind == "hinge"], dtype=int)
@@ -109,14 +111,14 @@ def plant_model_for(model, pelvis: str):
     if pelvis not in PELVIS_MODES:
         raise ValueError(f"pelvis={pelvis!r}; expected one of {PELVIS_MODES}")
     if model.dofs == "spine3d":
-        raise ValueError("dynamic simulation needs the 'sagittal' model (or a user model, dofs='all'), got dofs='spine3d'")
+        raise ValueError("dynamic simulation needs the 'sagittal' or 'rhythm' model (or a user model, dofs='all'), got dofs='spine3d'")
     if model.dofs == "all":
         return model
     return model.variant(pelvis_free=(pelvis == "force"))
 
 
 def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation=None, log_period: float = 0.0) -> TrunkDiagram:
-    """Build the diagram for `model` (sagittal). `perturbation` is a platform signal with
+    """Build the diagram for `model` (sagittal or rhythm). `perturbation` is a platform signal with
     `evaluate(t) -> (x, v, a)` (e.g. `trunk_drake.signals.make_multisine(...)`), or None.
     Loggers record every integrator step (``log_period=0``) or at a fixed period."""
     opts = options or TrunkOptions()
@@ -125,9 +127,9 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
     if opts.upper_body_mass_scale != 1.0:
         model = model.variant(spec=with_upper_body_mass(model.spec, opts.upper_body_mass_scale))
     pelvis_mode = opts.pelvis if perturbation is not None or opts.pelvis == "seat" else "none"
-    if opts.pelvis == "force" and model.dofs == "sagittal":
+    if opts.pelvis == "force" and model.dofs in SLIDING_PELVIS:
         base = model.variant(pelvis_free=True, pelvis_mass=opts.pelvis_mass)
-    elif opts.pelvis == "seat" and model.dofs == "sagittal":
+    elif opts.pelvis == "seat" and model.dofs in SLIDING_PELVIS:
         base = model.variant(pelvis_free=True)
     else:
         base = plant_model_for(model, "prescribed")
@@ -173,10 +175,10 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
         feedback.append(port)
     mixer = builder.AddNamedSystem("excitation", ExcitationMixer(n, len(feedback), opts.constants.minimum_activation))
     bushings = builder.AddNamedSystem(
-        "bushings", IntervertebralBushings(nq, nv, fe, opts.stiffness, opts.damping, cubic=opts.cubic)
+        "bushings", IntervertebralBushings(nq, nv, base.level_matrix, opts.stiffness, opts.damping, cubic=opts.cubic)
     )
 
-    builder.Connect(plant.get_state_output_port(), paths.get_input_port(0))
+    builder.Connect(plant.get_state_output_port(), paths.get_input_port())
     builder.Connect(plant.get_state_output_port(), bushings.get_input_port(0))
     builder.Connect(paths.GetOutputPort("path_state"), muscles.GetInputPort("path_state"))
     for name in ("normalized_fiber_length", "normalized_fiber_velocity"):
@@ -190,7 +192,7 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
     pert = None
     if pelvis_mode == "prescribed":
         direction = _anterior_direction(base)
-        pert = builder.AddNamedSystem("perturbation", PrescribedPelvisMotion(plant, perturbation, direction))
+        pert = builder.AddNamedSystem("perturbation", PrescribedPelvisMotion(base, perturbation, direction))
         builder.Connect(plant.get_state_output_port(), pert.GetInputPort("plant_state"))
         forces.append(pert.GetOutputPort("generalized_force"))
     elif pelvis_mode == "force":

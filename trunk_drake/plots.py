@@ -53,9 +53,10 @@ def plot_fit(result, out_dir) -> dict:
     n = len(result.series)
     fig, axes = plt.subplots(n, 1, figsize=(9, 2.6 * n), squeeze=False)
     for ax, (name, s) in zip(axes[:, 0], result.series.items()):
-        vaf = result.vaf[name].get(s["output"], float("nan"))
+        vaf = result.vaf[name].get(s["output"])
         ax.plot(s["time"], np.degrees(s["data"]), color="0.6", lw=1, label="data")
-        ax.plot(s["time"], np.degrees(s["model"]), "k", lw=1, label=f"model (VAF {100 * vaf:.1f} %)")
+        ax.plot(s["time"], np.degrees(s["model"]), "k", lw=1,
+                label="model (VAF undefined: constant target)" if vaf is None else f"model (VAF {100 * vaf:.1f} %)")
         ax.set_title(Path(name).name, fontsize=9)
         ax.set_ylabel(f"{s['output']} (deg)")
         ax.legend(loc="upper right", fontsize=8)

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import time as _time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -11,7 +13,7 @@ import numpy as np
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import EventStatus
 
-from trunk_drake.diagram import TrunkDiagram, TrunkOptions, build_trunk_diagram
+from trunk_drake.diagram import SLIDING_PELVIS, TrunkDiagram, TrunkOptions, build_trunk_diagram
 from trunk_drake.metadata import run_metadata
 
 DEFAULT_INTEGRATOR = "radau3"  # L-stable: the vertebral damping modes reach ~4000 1/s
@@ -49,6 +51,7 @@ class SimulationResult:
     wall_time_s: float
     options: dict
     metadata: dict = field(default_factory=dict)
+    levels: dict = field(default_factory=dict)  # level angle (rad) by name, L5_S1_FE ... L1_L2_FE (any configuration)
 
     @property
     def sim_time_s(self) -> float:
@@ -59,9 +62,12 @@ class SimulationResult:
         return self.sim_time_s / self.wall_time_s if self.wall_time_s > 0 else float("inf")
 
     def coordinate(self, name: str) -> np.ndarray:
-        if name not in self.coordinates:
-            raise KeyError(f"no coordinate {name!r}; coordinates: {self.coordinates}")
-        return self.q[:, self.coordinates.index(name)]
+        """A coordinate's trajectory, or a level angle's (also in a coupled configuration, e.g. the rhythm)."""
+        if name in self.coordinates:
+            return self.q[:, self.coordinates.index(name)]
+        if name in self.levels:
+            return self.levels[name]
+        raise KeyError(f"no coordinate or level {name!r}; coordinates: {self.coordinates}, levels: {list(self.levels)}")
 
     def summary(self) -> dict:
         """Numbers a user checks first (JSON-friendly), with a warning when the trunk left the
@@ -87,35 +93,69 @@ class SimulationResult:
         }
 
     def write(self, out_dir, plot: bool = True) -> dict[str, Path]:
-        """Write OpenSim storage (.sto), CSV, JSON summary and (optionally) a PNG plot."""
+        """Write OpenSim storage (.sto: the .osim's coordinate names and signs, see
+        `opensim_states`), CSV (trunk-drake's names, flexion +, units in the column names),
+        JSON summary and (optionally) a PNG plot."""
         from trunk_drake.io.storage import write_csv, write_storage
+        from trunk_drake.metadata import json_default
 
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
-        states = {c: self.q[:, i] for i, c in enumerate(self.coordinates)}
-        states.update({f"{c}_u": self.v[:, i] for i, c in enumerate(self.coordinates)})
-        states.update({f"{m}.activation": self.activation[:, i] for i, m in enumerate(self.muscles)})
+        states, header = self.opensim_states()
         forces = {m: self.muscle_force[:, i] for i, m in enumerate(self.muscles)}
-        kinematics = {"lumbar_rotation": self.lumbar_rotation, "platform_x": self.platform[:, 0],
-                      "platform_v": self.platform[:, 1], "platform_a": self.platform[:, 2]}
-        kinematics.update({c: self.q[:, i] for i, c in enumerate(self.coordinates)})
+        units = {"slide": "m", "hinge": "rad"}
+        kinematics = {"lumbar_rotation_rad": self.lumbar_rotation, "platform_x_m": self.platform[:, 0],
+                      "platform_v_m_per_s": self.platform[:, 1], "platform_a_m_per_s2": self.platform[:, 2]}
+        kinematics.update({f"{c}_{units['slide' if c == 'pelvis_tx' else 'hinge']}": self.q[:, i]
+                           for i, c in enumerate(self.coordinates)})
+        kinematics.update({f"{name}_rad": angle for name, angle in self.levels.items() if name not in self.coordinates})  # coupled levels
         paths = {
             "states": out / "states.sto",
             "muscle_forces": out / "muscle_forces.sto",
             "kinematics": out / "kinematics.csv",
             "summary": out / "summary.json",
         }
-        write_storage(paths["states"], time=self.time, columns=states, in_degrees=False, name="trunk-drake states")
-        write_storage(paths["muscle_forces"], time=self.time, columns=forces, in_degrees=False, name="trunk-drake tendon forces")
-        write_csv(paths["kinematics"], time=self.time, columns=kinematics, in_degrees=False)
-        import json
-
-        paths["summary"].write_text(json.dumps({**self.summary(), "options": self.options, "metadata": self.metadata}, indent=2, default=str))
+        write_storage(paths["states"], time=self.time, columns=states, in_degrees=False, name="trunk-drake states",
+                      extra_header=header)
+        write_storage(paths["muscle_forces"], time=self.time, columns=forces, in_degrees=False,
+                      name="trunk-drake tendon forces", extra_header={"units": "N"})
+        write_csv(paths["kinematics"], time=self.time, columns=kinematics, in_degrees=False,
+                  metadata={"convention": "trunk-drake coordinates, flexion positive; pelvis_tx anterior"})
+        paths["summary"].write_text(json.dumps({**self.summary(), "options": self.options, "metadata": self.metadata}, indent=2,
+                                               default=lambda o: json_default(o) if isinstance(o, (np.ndarray, np.generic)) else str(o)))
         if plot:
             from trunk_drake.plots import plot_simulation
 
             paths["plot"] = plot_simulation(self, out / "simulation.png")
         return paths
+
+    def opensim_states(self) -> tuple[dict[str, np.ndarray], dict[str, str]]:
+        """Columns and header lines of states.sto in Lumbar_C_210.osim's conventions: its
+        coordinate names (L5-S1 is ``flex_extension``) and signs (flexion negative), radians and
+        rad/s (``<name>_u``), then ``<muscle>.activation`` and, with compliant tendons,
+        ``<muscle>.fiber_length`` (m). ``pelvis_tx`` (m, anterior) is kept although the .osim
+        has no such coordinate."""
+        from trunk_drake.model.plant import RHYTHM_COORDINATE, opensim_coordinate
+
+        names, signs = [], []
+        for c in self.coordinates:
+            name, sign = opensim_coordinate(c) or (c, 1.0)
+            names.append(name)
+            signs.append(sign)
+        states = {n: s * self.q[:, i] for i, (n, s) in enumerate(zip(names, signs))}
+        states.update({f"{n}_u": s * self.v[:, i] for i, (n, s) in enumerate(zip(names, signs))})
+        states.update({f"{m}.activation": self.activation[:, i] for i, m in enumerate(self.muscles)})
+        if self.options.get("tendon") == "compliant":
+            states.update({f"{m}.fiber_length": self.fiber_length[:, i] for i, m in enumerate(self.muscles)})
+        coupled = RHYTHM_COORDINATE in self.coordinates
+        header = {"convention": "Lumbar_C_210.osim coordinate names and signs: flex_extension is "
+                                + ("the lumbar rhythm's coordinate (minus trunk-drake's lumbar_FE)" if coupled else "L5-S1")
+                                + ", flexion is negative (trunk-drake's kinematics.csv: flexion positive); angles in rad, "
+                                "speeds (_u) in rad/s",
+                  "coupling": ("the .osim's couplers give L4_L5_FE..L1_L2_FE from flex_extension, as trunk-drake's rhythm does"
+                               if coupled else "the .osim couples L4_L5_FE..L1_L2_FE to flex_extension; here every level moves on its own"),
+                  "pelvis_tx": "anterior pelvis (platform) translation in m; not a coordinate of the .osim, whose sacrum is welded"}
+        return states, header
 
 
 def _monitor(td: TrunkDiagram):
@@ -176,6 +216,8 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
         raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
     if log_rate <= 0:
         raise ValueError(f"log_rate must be positive (Hz), got {log_rate!r}")
+    if integrator not in FIXED_STEP_INTEGRATORS and not 0 < accuracy < 1:
+        raise ValueError(f"accuracy must lie in (0, 1), got {accuracy!r}")
     if max_step is None:
         max_step = min(MAX_STEP, 0.1 / bandwidth)
     td = build_trunk_diagram(model, opts, signal)
@@ -250,7 +292,8 @@ def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, se
     coords = list(td.model.coordinates)
     # the platform signal is known analytically: sample it exactly (not from the step-wise log)
     platform = np.column_stack(signal.evaluate(t)) if signal is not None else np.zeros((len(t), 3))
-    if td.model.dofs == "sagittal" and not td.model.pelvis_free:  # prescribed: the pelvis follows the platform
+    levels = dict(zip(td.model.levels, (q @ td.model.level_matrix.T).T))
+    if td.model.dofs in SLIDING_PELVIS and not td.model.pelvis_free:  # prescribed: the pelvis follows the platform
         coords = ["pelvis_tx", *coords]
         q = np.column_stack([platform[:, 0], q])
         v = np.column_stack([platform[:, 1], v])
@@ -271,7 +314,7 @@ def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, se
         activation=logs["activation"], excitation=logs["excitation"], muscle_force=logs["tendon_force"],
         normalized_fiber_length=logs["normalized_fiber_length"], normalized_fiber_velocity=logs["normalized_fiber_velocity"],
         fiber_length=logs["fiber_length"],
-        platform=platform, stats=stats, wall_time_s=wall, options=opts,
+        platform=platform, stats=stats, wall_time_s=wall, options=opts, levels=levels,
         metadata=run_metadata(td.model, seed=seed, bandwidth=bandwidth, perturbation=getattr(signal, "to_dict", lambda: None)()),
     )
 
@@ -279,27 +322,53 @@ def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, se
 def load_reflex_gains(path) -> dict[str, dict[str, float]]:
     """Per-group reflex gains from a TOML or JSON file with tables/objects ``kp`` and ``kv``.
 
-    A file may hold several named sets (like models/reflex_gains_thesis.toml); then use
-    ``FILE#name`` to pick one, e.g. ``models/reflex_gains_thesis.toml#car_passenger``.
+    A file may hold several named sets (like models/reflex_gains_thesis.toml): ``FILE#name``
+    picks one, e.g. ``models/reflex_gains_thesis.toml#car_passenger``; without a name the
+    file's first set is used (with a warning naming the others). A group missing from a table
+    gets gain 0 (its reflex is off), with a warning naming it.
     """
-    import json
     import tomllib
+
+    from trunk_drake.data import load_toml
 
     path, _, name = str(path).partition("#")
     p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(f"reflex gains file {p} does not exist")
-    data = tomllib.loads(p.read_text()) if p.suffix == ".toml" else json.loads(p.read_text())
+    if not p.is_file():
+        raise FileNotFoundError(f"reflex gains file {p} does not exist" if not p.exists() else f"reflex gains file {p} is a folder")
+    try:
+        data = tomllib.loads(p.read_text()) if p.suffix == ".toml" else json.loads(p.read_text())
+    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as err:
+        raise ValueError(f"{p} is not valid {'TOML' if p.suffix == '.toml' else 'JSON'}: {err}") from None
+    sets = [k for k, v in data.items() if isinstance(v, dict) and ("kp" in v or "kv" in v)]
     if name:
-        if name not in data:
-            raise ValueError(f"{p} has no gain set {name!r}; sets: {sorted(k for k in data if isinstance(data[k], dict))}")
+        if name not in sets:
+            raise ValueError(f"{p} has no gain set {name!r}; its sets: {sets or 'none (use the file without #NAME)'}")
         data = data[name]
+    elif "kp" not in data and "kv" not in data and sets:
+        name, data = sets[0], data[sets[0]]
+        if len(sets) > 1:
+            warnings.warn(f"{p} holds the gain sets {', '.join(sets)}: using {name} ({p}#NAME picks another)", stacklevel=2)
+    where = f"{p}{'#' + name if name else ''}"
     missing = [k for k in ("kp", "kv") if k not in data]
     if missing:
-        sets = sorted(k for k, v in data.items() if isinstance(v, dict) and {"kp", "kv"} <= set(v))
-        hint = f"; it holds the sets {sets}: pick one with {p}#NAME" if sets and not name else ""
-        raise ValueError(f"{p}{'#' + name if name else ''} lacks the {missing} table(s); expected [kp] and [kv] per muscle group{hint}")
-    return {"kp": dict(data["kp"]), "kv": dict(data["kv"])}
+        raise ValueError(f"{where} lacks the {missing} table(s); expected [kp] and [kv] per muscle group"
+                         + (f", or FILE#NAME for one of its sets {sets}" if sets else ""))
+    groups = list(load_toml("muscle_groups.toml")["groups"])
+    gains = {}
+    for kind in ("kp", "kv"):
+        table = data[kind]
+        unknown = sorted(set(table) - set(groups))
+        if unknown:
+            raise ValueError(f"{where}: [{kind}] names unknown muscle group(s) {unknown}; groups: {groups}")
+        for group, value in table.items():
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
+                raise ValueError(f"{where}: [{kind}] {group} = {value!r} is not a gain: write a number >= 0, "
+                                 f"e.g. {group} = 0.1")
+        absent = [g for g in groups if g not in table]
+        if absent:
+            warnings.warn(f"{where}: [{kind}] gives no gain for {', '.join(absent)}: their {kind} is 0", stacklevel=2)
+        gains[kind] = {g: float(v) for g, v in table.items()}
+    return gains
 
 
 DEFAULT_GAINS = "reflex_gains_thesis.toml#car_passenger"

@@ -6,6 +6,7 @@ parser sets ``func(args) -> exit code``; domain modules expose functions only.
 
 from __future__ import annotations
 
+import argparse
 import importlib
 import json
 import pkgutil
@@ -28,6 +29,33 @@ def group(sub, name: str, help: str):
         parser = sub.add_parser(name, help=help)
         parser.set_defaults(group_commands=parser.add_subparsers(dest=f"{name}_command", required=True))
     return sub.choices[name].get_default("group_commands")
+
+
+def positive(text: str) -> float:
+    """argparse type: a finite number > 0 (argparse names the option in its error)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text}")
+    return value
+
+
+def count(text: str) -> int:
+    """argparse type: a whole number >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
+    return value
+
+
+def plain_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """warnings.showwarning for users: one line, no Python source."""
+    print(f"warning: {message}", file=file or sys.stderr)
 
 
 def print_json(data) -> None:
@@ -67,3 +95,12 @@ def passenger_options(args, model) -> dict:
     return {"feedforward": feedforward, "stiffness": args.stiffness, "damping": args.damping,
             "srs": ShortRangeStiffness.from_reference() if args.srs else None, **gains}
 
+
+_CONFIGURATIONS = {"sagittal": "five independent lumbar flexion levels", "spine3d": "independent levels in 3-D, pelvis welded",
+                   "rhythm": "one lumbar flexion coordinate moving the levels with Lumbar_C_210's rhythm"}
+
+
+def dofs_argument(parser, choices=("sagittal", "rhythm"), default: str = "sagittal") -> None:
+    """`--dofs`: the model configuration a command runs on (trunk_drake.model.plant)."""
+    parser.add_argument("--dofs", choices=choices, default=default,
+                        help="; ".join(f"{c}: {_CONFIGURATIONS[c]}" for c in choices) + f" (default {default})")

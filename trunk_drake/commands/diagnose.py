@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import json
 
+from trunk_drake.commands import count, dofs_argument, positive
+from trunk_drake.gap.catalogue import CATALOGUE
+
 
 def add_command(sub) -> None:
     p = sub.add_parser("diagnose", help="diagnose the sim-to-real gap: where, which unmodelled effect, how far it shrinks",
@@ -13,11 +16,15 @@ def add_command(sub) -> None:
     p.add_argument("--out", required=True, help="output folder (report.md, diagnosis.json, figures)")
     p.add_argument("--conditions", help="TOML with a [conditions] table (default: conditions.toml beside the data)")
     p.add_argument("--gains", help="TOML with [kp] and [kv] per group: the model's reflex gains (e.g. a fit's gains.toml)")
-    p.add_argument("--noise-deg", type=float, help="angle measurement noise (default: conditions, else estimated)")
-    p.add_argument("--candidates", nargs="*", help="candidate effects (default: the whole catalogue)")
+    dofs_argument(p)
+    p.add_argument("--noise-deg", type=positive, help="angle measurement noise (default: conditions, else estimated)")
+    p.add_argument("--candidates", nargs="*", choices=[e.name for e in CATALOGUE], metavar="EFFECT",
+                   help=f"candidate effects (default: the whole catalogue: {', '.join(e.name for e in CATALOGUE)})")
     p.add_argument("--threshold", type=float, default=10.0, help="held-out dBIC needed to claim an effect")
-    p.add_argument("--refine", type=int, default=3, help="candidates refined with nonlinear simulations")
-    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--refine", type=count, default=3, help="candidates refined with nonlinear simulations")
+    p.add_argument("--workers", type=count, default=2)
+    p.add_argument("--no-animation", action="store_true",
+                   help="skip the two animations of the first trial (nominal and diagnosed model against the data)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.set_defaults(func=run)
 
@@ -34,15 +41,20 @@ def run(args) -> int:
     from trunk_drake.simulation import load_reflex_gains
 
     experiment = load_experiment(args.data, args.conditions)
+    if len(experiment.trials) < 2:
+        raise ValueError(f"diagnose needs at least two trials (the effects are scored on held-out data), got "
+                         f"{len(experiment.trials)}: {experiment.source}")
     options = dict(experiment.options)
     if args.gains:
         options.update(load_reflex_gains(args.gains))
     noise = np.radians(args.noise_deg) if args.noise_deg is not None else experiment.noise_rad
-    diagnosis = diagnose_gap(load_model("sagittal"), experiment.trials, TrunkOptions(**options), noise=noise,
+    model = load_model(args.dofs)
+    diagnosis = diagnose_gap(model, experiment.trials, TrunkOptions(**options), noise=noise,
                              outputs=available_outputs(experiment.trials),
                              candidates=args.candidates, threshold=args.threshold, refine=args.refine,
                              period=experiment.period, fade=experiment.fade, workers=args.workers, progress=not args.json)
-    files = write_diagnosis(diagnosis, args.out)
+    animations = {} if args.no_animation else _animations(model, experiment.trials[0], TrunkOptions(**options), diagnosis, args.out)
+    files = write_diagnosis(diagnosis, args.out, animations)
     if args.json:
         print(json.dumps({"verdict": diagnosis.verdict, "selected": diagnosis.selected, "final": diagnosis.final,
                           "shrink": {k: v for k, v in diagnosis.shrink.items() if k != "per_trial"},
@@ -51,3 +63,17 @@ def run(args) -> int:
     else:
         print(f"{diagnosis.verdict}\nreport: {files['report']}")
     return 0
+
+
+def _animations(model, trial, nominal, diagnosis, out) -> dict:
+    """The first trial against the nominal and the diagnosed model, as pages (data over model)."""
+    from pathlib import Path
+
+    from trunk_drake.visual import animate_trial
+
+    name = Path(trial.source or "trial").name
+    runs = {"nominal": (nominal, "nominal model"),
+            "diagnosed": (diagnosis.final_options, "diagnosed model (" + (", ".join(diagnosis.selected) or "gains refitted") + ")")}
+    return {f"{text} against {name}": animate_trial(trial, Path(out) / f"animation_{key}.html", model, options,
+                                                    title=f"trunk-drake diagnose: {text} against {name}", label=name)
+            for key, (options, text) in runs.items()}

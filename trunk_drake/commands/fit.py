@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from trunk_drake.commands import print_json
+from trunk_drake.commands import count, dofs_argument, positive, print_json
 from trunk_drake.optim.fit import THESIS_START
 
 
@@ -13,12 +13,15 @@ def add_command(sub) -> None:
     p.add_argument("data", nargs="*", help="trial files or folders (e.g. models/reference); none for --scenario settling")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--scenario", choices=sorted(THESIS_START), default="car")
+    dofs_argument(p)
     p.add_argument("--conditions", help="TOML with a [conditions] table (default: conditions.toml beside the data)")
     p.add_argument("--outputs", choices=["total", "levels", "all"], default="all",
                    help="fit the total lumbar rotation, the five level angles, or all (default; those present in the data)")
-    p.add_argument("--starts", type=int, default=1, help="number of starting points (multi-start)")
-    p.add_argument("--workers", type=int, default=2, help="parallel simulation processes")
-    p.add_argument("--max-iterations", type=int, default=20)
+    p.add_argument("--t-max", type=positive, default=None, metavar="SECONDS",
+                   help="fit only the first SECONDS of each trial (a quick look; the FRF needs whole periods)")
+    p.add_argument("--starts", type=count, default=1, help="number of starting points (multi-start)")
+    p.add_argument("--workers", type=count, default=2, help="parallel simulation processes")
+    p.add_argument("--max-iterations", type=count, default=20)
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.set_defaults(func=run)
 
@@ -33,7 +36,7 @@ def run(args) -> int:
     from trunk_drake.optim.fit import fit_reflex_gains, settling_target, targets_from_trials, write_fit
     from trunk_drake.optim.static import coactivation
 
-    model = load_model("sagittal")
+    model = load_model(args.dofs)
     names = {"total": ("lumbar_rotation",), "levels": OUTPUT_NAMES[1:], "all": OUTPUT_NAMES}[args.outputs]
     if args.scenario == "settling":
         targets = [settling_target()]
@@ -46,7 +49,7 @@ def run(args) -> int:
         names = tuple(n for n in names if n in present) or names
         noise = experiment.noise_rad if experiment.noise_rad is not None else np.radians(0.1)
         targets = targets_from_trials(experiment.trials, names, noise, period=experiment.period,
-                                      steady_start=experiment.fade)
+                                      steady_start=experiment.fade, t_max=args.t_max)
         opts = dict(experiment.options)
         if "feedforward" not in opts:
             opts["feedforward"] = coactivation(model, experiment.coactivation_min_activation or 0.02)

@@ -1,14 +1,14 @@
-"""`trunk-drake model info [--dofs sagittal|spine3d] [--json]`."""
+"""`trunk-drake model info [--dofs sagittal|spine3d|rhythm] [--json]`."""
 
 from __future__ import annotations
 
-from trunk_drake.commands import group, print_json
+from trunk_drake.commands import dofs_argument, group, print_json
 
 
 def add_command(sub) -> None:
     info = group(sub, "model", "inspect the trunk model").add_parser(
         "info", help="coordinates, muscles per group, masses, upper-body centre of mass")
-    info.add_argument("--dofs", choices=["sagittal", "spine3d"], default="sagittal")
+    dofs_argument(info, ("sagittal", "spine3d", "rhythm"))
     info.add_argument("--json", action="store_true", help="print JSON instead of text")
     info.set_defaults(func=run)
 

@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import sys
+import warnings
 from pathlib import Path
 
+from trunk_drake.commands import count, plain_warning
 from trunk_drake.reproduce import EXPERIMENTS, REPORT_MD
 
 
 def add_run_arguments(parser) -> None:
     """Options shared by `trunk-drake reproduce` and the analyses/ scripts."""
     parser.add_argument("--out", required=True, help="output folder (report.md, report.json, one folder per experiment)")
-    parser.add_argument("--workers", type=int, default=2, help="parallel processes for sweeps and fits (default 2)")
+    parser.add_argument("--workers", type=count, default=2, help="parallel processes for sweeps and fits (default 2)")
     parser.add_argument("--force", action="store_true", help="recompute experiments already in report.json")
 
 
@@ -22,13 +24,15 @@ def add_command(sub) -> None:
     add_run_arguments(p)
     p.add_argument("--only", nargs="+", metavar="NAME", choices=[e.name for e in EXPERIMENTS],
                    help="run only these experiments (and what they require)")
-    p.set_defaults(func=run)
+    p.add_argument("--quick", action="store_true",
+                   help="every experiment shortened to seconds (a check that each runs, not a result; about 3 min)")
+    p.set_defaults(func=run, resumable=True)
 
 
 def run(args) -> int:
     from trunk_drake.reproduce import run_experiments
 
-    report = run_experiments(args.out, args.only, force=args.force, workers=args.workers)
+    report = run_experiments(args.out, args.only, force=args.force, workers=args.workers, quick=args.quick)
     failed = [n for n in report["run"]["selected"] if report["experiments"][n].get("status") != "ok"]
     if failed:
         print(f"trunk-drake: failed experiments: {', '.join(failed)} (see {Path(args.out) / REPORT_MD})", file=sys.stderr)
@@ -45,5 +49,7 @@ def script_main(script: str) -> int:
     parser = argparse.ArgumentParser(description=f"{experiment(name).title}: run it and write report.md/.json into --out")
     add_run_arguments(parser)
     args = parser.parse_args()
-    report = run_experiments(args.out, [name], force=args.force, workers=args.workers)
+    with warnings.catch_warnings():
+        warnings.showwarning = plain_warning
+        report = run_experiments(args.out, [name], force=args.force, workers=args.workers)
     return 0 if report["experiments"][name]["status"] == "ok" else 1

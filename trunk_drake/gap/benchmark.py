@@ -27,6 +27,7 @@ from trunk_drake.gap.diagnose import diagnose_gap
 from trunk_drake.gap.report import write_diagnosis
 from trunk_drake.gap.synthetic import add_noise, clean_trials, signature_chi2
 from trunk_drake.metadata import json_default
+from trunk_drake.parallel import WorkerPool
 
 DEFAULT_NOISE_DEG = 0.1  # motion-capture angle noise (modelling choice: ~0.2 mm marker noise over a few cm)
 GAIN_SPREAD = 0.2  # SD of log(gain factor) of the perturbed nominal gains
@@ -126,6 +127,16 @@ def cases(quick: bool = False) -> list[Case]:
     return out
 
 
+def select_cases(names) -> list[Case]:
+    """The cases named in `names` (case names or classes: single, pair, outside, none), in benchmark order."""
+    every = cases()
+    unknown = set(names) - {c.name for c in every} - set(CLASSES)
+    if unknown:
+        raise ValueError(f"unknown gap-benchmark case(s) {sorted(unknown)}; give case names or classes {list(CLASSES)} "
+                         "(trunk-drake gap-benchmark --help lists the cases)")
+    return [c for c in every if c.name in names or c.kind in names]
+
+
 def _name(effects) -> str:
     return "+".join(f"{n}_{'_'.join(f'{k}{v:g}' for k, v in values.items())}".rstrip("_") for n, values in effects)
 
@@ -153,7 +164,8 @@ def _lag_kinematics(trials, lag_s: float):
     return out
 
 
-def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, out_dir: Path, workers: int) -> dict:
+def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers: int):
+    """Simulate the case's truth, diagnose it blind; returns (result row, diagnosis)."""
     designs = [("1hz_a", 1.0, case.seed), ("1hz_b", 1.0, case.seed + 1000), ("3hz", 3.0, case.seed + 2000)]
     start = time.perf_counter()
     truth = truth_options(nominal, case)
@@ -163,18 +175,30 @@ def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, out_dir
     observability = _observability(model, case, nominal, designs, clean, noise_rad) if case.effects else {}
     diagnosis = diagnose_gap(model, add_noise(clean, noise_rad, seed=case.seed), nominal, noise=noise_rad,
                              threshold=THRESHOLD, workers=workers)
-    write_diagnosis(diagnosis, out_dir / "cases" / case.name)
     top = diagnosis.ranking[0]["effect"] if diagnosis.ranking else None
     left = diagnosis.remainder
-    return {"case": case.name, "kind": case.kind, "truth": case.truth, "withheld": [list(e) for e in case.effects],
-            "selected": diagnosis.selected, "ranked_first": top, "verdict": diagnosis.verdict,
-            "unexplained": not left["is_noise"], "remainder": {k: left[k] for k in ("chi2_per_sample", "ljung_box", "frf")},
-            "on_bounds": diagnosis.final["on_bounds"], "steps": diagnosis.steps, "fitted": diagnosis.final["effects"],
-            "ranking": [{k: r.get(k) for k in ("effect", "delta_bic", "linear_delta_bic", "values")} for r in diagnosis.ranking],
-            "gap": diagnosis.shrink.get("gap"), "reduction": diagnosis.shrink.get("reduction"),
-            "reduction_above_noise": diagnosis.shrink.get("reduction_above_noise"),
-            "noise_floor_gap": diagnosis.shrink.get("noise_floor_gap"), **observability,
-            "simulations": diagnosis.options["scores"]["simulations"], "wall_time_s": time.perf_counter() - start}
+    row = {**_error_row(case, ""), "selected": diagnosis.selected, "ranked_first": top, "verdict": diagnosis.verdict,
+           "unexplained": not left["is_noise"], "remainder": {k: left[k] for k in ("chi2_per_sample", "ljung_box", "frf")},
+           "on_bounds": diagnosis.final["on_bounds"], "steps": diagnosis.steps, "fitted": diagnosis.final["effects"],
+           "ranking": [{k: r.get(k) for k in ("effect", "delta_bic", "linear_delta_bic", "values")} for r in diagnosis.ranking],
+           "gap": diagnosis.shrink.get("gap"), "reduction": diagnosis.shrink.get("reduction"),
+           "reduction_above_noise": diagnosis.shrink.get("reduction_above_noise"),
+           "noise_floor_gap": diagnosis.shrink.get("noise_floor_gap"), **observability,
+           "simulations": diagnosis.options["scores"]["simulations"], "wall_time_s": time.perf_counter() - start}
+    return row, diagnosis
+
+
+def _case_job(model, job):
+    """Worker job: one case, or its error row (a failing case is recorded and the benchmark goes on)."""
+    case, nominal, noise_rad, workers = job
+    try:
+        return run_case(model, case, nominal, noise_rad, workers)
+    except Exception as err:  # noqa: BLE001
+        return {**_error_row(case, f"{type(err).__name__}: {err}"), "traceback": traceback.format_exc(limit=3)}, None
+
+
+def _error_row(case: Case, message: str) -> dict:
+    return {"case": case.name, "kind": case.kind, "truth": case.truth, "withheld": [list(e) for e in case.effects], "error": message}
 
 
 def _observability(model, case: Case, nominal: TrunkOptions, designs, clean, noise_rad: float) -> dict:
@@ -189,10 +213,12 @@ def _observability(model, case: Case, nominal: TrunkOptions, designs, clean, noi
     return {"signature_chi2": chi2, "observable": bool(chi2 / 2 > THRESHOLD + k * np.log(n_heldout))}
 
 
-def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE_DEG, workers: int = 2, only: str | None = None,
-                  progress=print) -> dict:
-    """Run (or resume) every case (those whose name contains `only`, if given); returns the
-    summary of all cases done so far (also written to summary.json/.md)."""
+def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE_DEG, workers: int = 2, progress=print,
+                  cluster: str | None = None, only=None) -> dict:
+    """Run (or resume) every case, or those of `only` (case names or classes: single, pair, outside,
+    none); returns the summary of the cases done so far (also written to summary.json/.md). Locally
+    the cases run one after another, each diagnosis on `workers` processes; on the Dask cluster at
+    `cluster` the cases run in parallel, one per worker."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     results_path = out / "results.jsonl"
@@ -201,25 +227,24 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
         for line in results_path.read_text().splitlines():
             row = json.loads(line)
             done[row["case"]] = row
+    all_cases = select_cases(only) if only else cases(quick)
     model, nominal = truth_configuration()
     noise = float(np.radians(noise_deg))
-    all_cases = cases(quick)
-    todo = [c for c in all_cases if only is None or only in c.name]
-    for k, case in enumerate(todo, 1):
-        if case.name in done and "error" not in done[case.name]:
-            continue
-        try:
-            row = run_case(model, case, nominal, noise, out, workers)
-        except Exception as err:  # noqa: BLE001 - a failing case is recorded and the batch goes on
-            row = {"case": case.name, "kind": case.kind, "truth": case.truth, "error": f"{type(err).__name__}: {err}",
-                   "traceback": traceback.format_exc(limit=3)}
-        done[case.name] = row
-        with results_path.open("a") as f:
-            f.write(json.dumps(row, default=json_default) + "\n")
-        if progress:
-            progress(f"[{k}/{len(todo)}] {case.name}: " + (row.get("error") or
-                     f"claimed {row['selected'] or 'none'}{', unexplained remainder' if row['unexplained'] else ''} "
-                     f"({row['wall_time_s']:.0f} s)"))
+    pending = [c for c in all_cases if c.name not in done or "error" in done[c.name]]
+    jobs = [(case, nominal, noise, 1 if cluster else workers) for case in pending]
+    with WorkerPool(model, 1, cluster) as pool:
+        for finished, (i, result, error) in enumerate(pool.completed(_case_job, jobs), 1):
+            case = pending[i]
+            row, diagnosis = result if error is None else (_error_row(case, f"worker lost: {type(error).__name__}: {error}"), None)
+            if diagnosis is not None:
+                write_diagnosis(diagnosis, out / "cases" / case.name)
+            done[case.name] = row
+            with results_path.open("a") as f:
+                f.write(json.dumps(row, default=json_default) + "\n")
+            if progress:
+                progress(f"[{finished + len(all_cases) - len(pending)}/{len(all_cases)}] {case.name}: " + (row.get("error") or
+                         f"claimed {row['selected'] or 'none'}{', unexplained remainder' if row['unexplained'] else ''} "
+                         f"({row['wall_time_s']:.0f} s)"))
     summary = summarize([done[c.name] for c in all_cases if c.name in done], noise_deg)
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=json_default))
     (out / "summary.md").write_text(summary_markdown(summary))

@@ -38,12 +38,13 @@ import numpy as np
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.gap.catalogue import CATALOGUE, effect
 from trunk_drake.gap.measures import frf_errors, locate_gap, measure_shrinkage, remainder, segment_chi2
-from trunk_drake.gap.refit import Simulator, TimeDomainFitter
+from trunk_drake.gap.refit import TimeDomainFitter, simulation_job
 from trunk_drake.gap.screen import LinearScreen, identifiable_directions
 from trunk_drake.gap.search import SearchResult, Settings, search_effects
 from trunk_drake.gap.space import SearchSpace
 from trunk_drake.gap.trials import estimate_noise, half, noise_variance_uncertainty, prepare_trials
 from trunk_drake.io.trials import OUTPUT_NAMES
+from trunk_drake.parallel import WorkerPool
 
 
 @dataclass
@@ -62,9 +63,10 @@ class GapDiagnosis:
     steps: list = field(default_factory=list)  # the selection, step by step
     remainder: dict = field(default_factory=dict)  # is what the selected model leaves measurement noise?
     series: dict = field(default_factory=dict)  # per trial: time, data, nominal, refit, effect (lumbar rotation)
+    final_options: TrunkOptions | None = None  # the selected model, to simulate it
 
     def to_dict(self) -> dict:
-        return {k: v for k, v in dataclasses.asdict(self).items() if k != "series"}
+        return {k: v for k, v in dataclasses.asdict(self).items() if k not in ("series", "final_options")}
 
 
 def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: float | None = None, outputs=OUTPUT_NAMES,
@@ -90,8 +92,8 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
     if say:
         say(f"{len(data)} trials, noise {np.round(np.degrees(noise), 3).tolist()} deg; simulating the nominal model")
     settings = Settings(threshold, max_effects, refine)
-    with Simulator(model, workers) as simulator:
-        results = simulator.run([(options, t, outputs) for t in data])
+    with WorkerPool(model, workers) as simulator:
+        results = simulator.map(simulation_job, [(options, t, outputs) for t in data])
         for t, r in zip(data, results):
             if isinstance(r, Exception):
                 raise ValueError(f"the nominal model diverges on {t.name}: {r}")
@@ -119,6 +121,7 @@ def _report(data, noise, nominal, space: SearchSpace, found: SearchResult, left:
     shrink = measure_shrinkage(data, variants, float(noise[0]))
     shrink["frf_error"] = frf_errors(data, variants)
     on_bounds = _on_bounds(space, found)
+    by_name = {c.name: c for c in candidates}
     final = {"effects": found.best.values if found.selected else {}, "gains": space.gains(found.best.x[:space.rank]),
              "on_bounds": on_bounds}
     series = {t.name: {"time": t.time[t.steady], "data": t.steady_outputs[:, 0],
@@ -131,7 +134,8 @@ def _report(data, noise, nominal, space: SearchSpace, found: SearchResult, left:
                                  "refine": settings.refine, "outputs": list(outputs),
                                  "candidates": [c.name for c in candidates], "scores": found.scores,
                                  "gain_directions": int(space.rank), "held_out": "second half of every trial's steady window"},
-                        steps=found.steps, remainder=left, series=series)
+                        steps=found.steps, remainder=left, series=series,
+                        final_options=space.options_for(found.best.x, tuple(by_name[n] for n in found.best.effects)))
 
 
 def _on_bounds(space: SearchSpace, found: SearchResult, tolerance: float = 0.01) -> list[str]:

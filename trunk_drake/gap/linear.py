@@ -7,7 +7,9 @@ q, v and the activations) by central differences of the diagram itself, the musc
 the Thelen derivatives. The loops - stretch reflex, Golgi tendon organs, trunk-in-space
 feedback, each with its own transport delay exp(-s tau) - and the activation dynamics are
 closed per frequency. Activations are eliminated muscle by muscle (each is a first-order lag
-of its own excitation), so every frequency needs only a 5x5 (6x6 with a seat) solve.
+of its own excitation), so every frequency needs only an n x n solve (n: the mechanical
+coordinates, 5 levels in the sagittal configuration, 1 in the rhythm, +1 with a seat). The
+bushings act on the level angles L q (L = `model.level_matrix`), the lumbar rotation is sum(L q).
 
 Kinks are linearised by central differences or their describing function for small
 symmetric oscillation: (v)+ of the velocity reflex and each side of the trunk-in-space
@@ -29,7 +31,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from trunk_drake.diagram import EXTENSOR_GROUPS, FLEXOR_GROUPS, TrunkOptions, _group_mask, build_trunk_diagram
-from trunk_drake.model.levels import LUMBAR_LEVELS
 from trunk_drake.muscle import thelen
 from trunk_drake.optim.least_squares import finite_difference_jacobian
 from trunk_drake.systems.muscles import muscle_parameters
@@ -49,11 +50,12 @@ class ConstantAcceleration:
 
 @dataclass
 class OperatingPoint:
-    """Where the diagram is linearised: mean lumbar posture q (rad, per level), activations a and
-    excitations u (per muscle), and the RMS angle of each level about the bushings' rest angle
-    (offset included), the range over which amplitude-dependent laws are linearised."""
+    """Where the diagram is linearised: the mean level angles (rad, `model.levels` order: the
+    lumbar posture in any configuration), activations a and excitations u (per muscle), and the
+    RMS angle of each level about the bushings' rest angle (offset included), the range over
+    which amplitude-dependent laws are linearised."""
 
-    q: np.ndarray
+    angles: np.ndarray
     a: np.ndarray
     u: np.ndarray
     amplitude: np.ndarray
@@ -61,7 +63,7 @@ class OperatingPoint:
     @classmethod
     def of(cls, result, window: slice) -> OperatingPoint:
         """The operating point of a simulation (SimulationResult) over the samples `window`."""
-        levels = result.q[window][:, [result.coordinates.index(c) for c in LUMBAR_LEVELS]]
+        levels = np.column_stack(list(result.levels.values()))[window]
         return cls(levels.mean(axis=0), result.activation[window].mean(axis=0), result.excitation[window].mean(axis=0),
                    np.sqrt(np.mean(levels**2, axis=0)))
 
@@ -85,7 +87,7 @@ class LinearTrunk:
     """Open-loop linearisation (see module docstring). Coordinates q = the mechanical model's."""
 
     coordinates: list[str]
-    fe: np.ndarray  # indices of the lumbar flexion coordinates in q
+    levels: np.ndarray  # (n_levels, n): level angles = levels @ q (model.level_matrix)
     dvdq: np.ndarray  # (n, n)
     dvdv: np.ndarray  # (n, n)
     dvda: np.ndarray  # (n, m)
@@ -112,7 +114,8 @@ class LinearTrunk:
 
     def frf(self, freqs, options: TrunkOptions, amplitude=None) -> np.ndarray:
         """Rotation per platform displacement (rad/m) at `freqs` (Hz) of the diagram with
-        `options`: (n_f, 6) complex, columns total lumbar rotation then L5_S1 ... L1_L2.
+        `options`: (n_f, 1 + levels) complex, columns total lumbar rotation then the level angles
+        (`model.levels`: L5_S1 ... L1_L2).
         `amplitude` (rad per level, default the operating point's) is the RMS angle over which
         the stiffening law is linearised: give each trial its own."""
         self._check(options)
@@ -120,11 +123,14 @@ class LinearTrunk:
         b = self._blocks(options)
         freqs = np.atleast_1d(np.asarray(freqs, float))
         n = len(self.coordinates)
-        out = np.empty((freqs.size, 1 + self.fe.size), dtype=complex)
+        L = self.levels
+        out = np.empty((freqs.size, 1 + len(L)), dtype=complex)
+        select = L.sum(axis=0)  # the lumbar rotation as a function of q
         dvdq, dvdv = b["dvdq"].copy(), b["dvdv"].copy()
-        dvdq[:, self.fe] -= b["m_inv"][:, self.fe] * (self._bushing_stiffness(options, amplitude)
-                                                      - self._bushing_stiffness(self.options, amplitude))
-        dvdv[:, self.fe] -= b["m_inv"][:, self.fe] * (_per_level(options.damping) - _per_level(self.options.damping))
+        k_change = self._bushing_stiffness(options, amplitude) - self._bushing_stiffness(self.options, amplitude)
+        c_change = self._per_level(options.damping) - self._per_level(self.options.damping)
+        dvdq -= b["m_inv"] @ (L.T * k_change) @ L  # the bushings act on the level angles L q
+        dvdv -= b["m_inv"] @ (L.T * c_change) @ L
         rate = b["rate"] / options.activation_scale
         reflex_q, vest = self._position_feedback(options, b)
         stretch_v = (0.5 * options.per_muscle(self.model, options.kv))[:, None] * b["dvn_dv"]
@@ -151,8 +157,8 @@ class LinearTrunk:
             else:
                 rhs = b["b_acc"] * s * s
             q = np.linalg.solve(Z, rhs)
-            out[i, 0] = q[self.fe].sum()
-            out[i, 1:] = q[self.fe]
+            out[i, 0] = select @ q
+            out[i, 1:] = L @ q
         return out
 
     def _blocks(self, options: TrunkOptions) -> dict:
@@ -171,8 +177,7 @@ class LinearTrunk:
     def _position_feedback(self, options: TrunkOptions, b: dict) -> tuple[np.ndarray, np.ndarray]:
         """Excitation per coordinate (m, n) of the loops through the reflex delay (stretch and Golgi)
         and of the trunk-in-space loop, delays left out."""
-        select = np.zeros(len(self.coordinates))
-        select[self.fe] = 1.0
+        select = self.levels.sum(axis=0)
         stretch = (options.per_muscle(self.model, options.kp) * self.stretch_active)[:, None] * b["dln_dq"]
         golgi = (options.gto_gain * self.headroom)[:, None] * b["df_dq"]
         vest = (0.5 * options.vestibular_gain * (self.extensors - self.flexors))[:, None] * select[None, :]
@@ -193,13 +198,16 @@ class LinearTrunk:
             w = 1.0 / (1.0 + self.options.gto_gain * self.headroom * self.df_da)  # static activation per feedback
             dq = -np.linalg.solve(self.dvdq + self.dvda @ (w[:, None] * k_q), other.vdot - self.vdot)
             du = k_q @ dq
-            moved = OperatingPoint(self.op.q + dq[self.fe], self.op.a + w * du, self.op.u + du, self.op.amplitude)
+            moved = OperatingPoint(self.op.angles + self.levels @ dq, self.op.a + w * du, self.op.u + du, self.op.amplitude)
             other = linearize(self.model, options, moved)
         return {k: (getattr(other, k) - base[k]) / step for k in base}
 
     def _bushing_stiffness(self, options: TrunkOptions, amplitude) -> np.ndarray:
         """Per level: k (1 + 3 c E[dq^2]), the statistical linearisation of M = -k (dq + c dq^3)."""
-        return _per_level(options.stiffness) * (1.0 + 3.0 * options.cubic * amplitude**2)
+        return self._per_level(options.stiffness) * (1.0 + 3.0 * options.cubic * amplitude**2)
+
+    def _per_level(self, value) -> np.ndarray:
+        return np.broadcast_to(np.asarray(value, float), (len(self.levels),))
 
     def _check(self, options: TrunkOptions) -> None:
         seat = options.pelvis == "seat"
@@ -212,10 +220,6 @@ class LinearTrunk:
             raise ValueError(f"the linear model cannot follow a change of {', '.join(changed)}: linearise with these options")
 
 
-def _per_level(value) -> np.ndarray:
-    return np.broadcast_to(np.asarray(value, float), (len(LUMBAR_LEVELS),))
-
-
 def _same(a, b) -> bool:
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
         return a is not None and b is not None and bool(np.array_equal(a, b))
@@ -224,10 +228,11 @@ def _same(a, b) -> bool:
 
 def linearize(model, options: TrunkOptions, op: OperatingPoint, seat: bool = False, h: float = 1e-6) -> LinearTrunk:
     """Open-loop linearisation of `model` with the non-feedback parts of `options` at the
-    operating point `op`. With ``seat=True`` the pelvis slides freely (for pelvis="seat")."""
+    operating point `op` (its level angles set as the least-norm q, `model.level_matrix`). With
+    ``seat=True`` the pelvis slides freely (for pelvis="seat")."""
     if options.srs is not None:
         raise ValueError("linearise without short-range stiffness (srs=None): the linear model adds it per frequency")
-    q0, a0, u0 = op.q, op.a, op.u
+    a0, u0 = op.a, op.u
     open_loop = dataclasses.replace(options, kp=0.0, kv=0.0, gto_gain=0.0, vestibular_gain=0.0, reflex_delay=0.0,
                                     vestibular_delay=0.0, feedforward=np.asarray(u0, float),
                                     pelvis="force" if seat else "prescribed", pelvis_mass=_sacrum_mass(model))
@@ -235,8 +240,7 @@ def linearize(model, options: TrunkOptions, op: OperatingPoint, seat: bool = Fal
     td = build_trunk_diagram(model, open_loop, signal)
     base, plant, n_m = td.model, td.plant, td.muscles.n
     nq = plant.num_positions()
-    q = np.zeros(nq)
-    q[td.fe_indices] = np.asarray(q0, float)
+    q = np.linalg.pinv(base.level_matrix) @ np.asarray(op.angles, float)
     x0 = np.concatenate([q, np.zeros(nq), np.asarray(a0, float)])
     context = td.diagram.CreateDefaultContext()
 
@@ -268,7 +272,7 @@ def linearize(model, options: TrunkOptions, op: OperatingPoint, seat: bool = Fal
     u0 = np.asarray(u0, float)
     srs_unit = np.asarray(a0, float) * kin.active_force_length * f_max * kin.cos_pennation**2 / params.optimal_fiber_length
     return LinearTrunk(
-        coordinates=list(base.coordinates), fe=np.asarray(td.fe_indices), dvdq=jac[vrows, :nq], dvdv=jac[vrows, nq:2 * nq],
+        coordinates=list(base.coordinates), levels=base.level_matrix, dvdq=jac[vrows, :nq], dvdv=jac[vrows, nq:2 * nq],
         dvda=jac[vrows, arows], m_inv=np.linalg.inv(plant.CalcMassMatrix(plant_ctx)), b_acc=b_acc,
         pelvis=base.coordinates.index("pelvis_tx") if seat else None, rate=-np.diag(jac[arows, arows]),
         dln_dq=-(kin.cos_pennation / params.optimal_fiber_length)[:, None] * R,

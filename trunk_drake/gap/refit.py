@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
-
 import numpy as np
 
 from trunk_drake.diagram import TrunkOptions
@@ -13,6 +11,7 @@ from trunk_drake.gap.measures import segment_chi2
 from trunk_drake.gap.space import Fit, SearchSpace
 from trunk_drake.gap.trials import half
 from trunk_drake.optim.least_squares import finite_difference_jacobian, levenberg_marquardt
+from trunk_drake.parallel import WorkerPool
 from trunk_drake.simulation import SimulationError, simulate
 
 DIVERGED = 1e12  # chi-square of a simulation that diverged
@@ -26,50 +25,20 @@ def simulate_outputs(model, options: TrunkOptions, trial, outputs) -> tuple[np.n
     return y - y.mean(axis=0), OperatingPoint.of(result, trial.steady)
 
 
-_WORKER = {}
-
-
-def _init(spec, dofs):
-    from trunk_drake.model.trunk_model import load_model
-
-    _WORKER["model"] = load_model(dofs, spec=spec)
-
-
-def _sim_job(args):
-    options, trial, outputs = args
+def simulation_job(model, job):
+    """Worker job: one trial's outputs and operating point, or the SimulationError of a diverging run."""
+    options, trial, outputs = job
     try:
-        return simulate_outputs(_WORKER["model"], options, trial, outputs)
+        return simulate_outputs(model, options, trial, outputs)
     except SimulationError as err:
         return err
 
 
-class Simulator:
-    """Runs (options, trial, outputs) simulations, in a persistent pool of worker processes
-    (each builds the model once) when workers > 1. Use as a context manager."""
-
-    def __init__(self, model, workers: int):
-        self.model, self.workers, self.pool = model, workers, None
-
-    def __enter__(self):
-        if self.workers > 1:
-            self.pool = ProcessPoolExecutor(self.workers, initializer=_init, initargs=(self.model.spec, self.model.dofs))
-        else:
-            _WORKER["model"] = self.model
-        return self
-
-    def __exit__(self, *exc):
-        if self.pool:
-            self.pool.shutdown()
-
-    def run(self, jobs) -> list:
-        return list(self.pool.map(_sim_job, jobs)) if self.pool else [_sim_job(job) for job in jobs]
-
-
 class TimeDomainFitter:
-    """Refit and score models with full nonlinear simulations (first halves train, second test):
-    secant Levenberg-Marquardt over the `free` coordinates of x (others held)."""
+    """Refit and score models with full nonlinear simulations (first halves train, second test) on
+    the worker pool `simulator`: secant Levenberg-Marquardt over the `free` coordinates of x (others held)."""
 
-    def __init__(self, simulator: Simulator, space: SearchSpace, trials, noise, outputs):
+    def __init__(self, simulator: WorkerPool, space: SearchSpace, trials, noise, outputs):
         self.simulator, self.space, self.trials, self.noise, self.outputs = simulator, space, trials, noise, outputs
         self.simulations = 0
         self.cache: dict = {}
@@ -78,7 +47,7 @@ class TimeDomainFitter:
         keys = [(tuple(e.name for e in effects), np.asarray(p, float).tobytes()) for p in points]
         todo = {k: p for k, p in zip(keys, points) if k not in self.cache}
         jobs = [(self.space.options_for(p, effects), t, self.outputs) for p in todo.values() for t in self.trials]
-        sims = self.simulator.run(jobs) if jobs else []
+        sims = self.simulator.map(simulation_job, jobs)
         self.simulations += len(jobs)
         n = len(self.trials)
         for i, k in enumerate(todo):

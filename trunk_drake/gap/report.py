@@ -14,8 +14,9 @@ import numpy as np  # noqa: E402
 from trunk_drake.metadata import json_default  # noqa: E402
 
 
-def write_diagnosis(diagnosis, out_dir) -> dict[str, Path]:
-    """All files of one diagnosis; returns their paths."""
+def write_diagnosis(diagnosis, out_dir, animations: dict[str, Path] | None = None) -> dict[str, Path]:
+    """All files of one diagnosis; returns their paths. `animations`: pages of key runs (label ->
+    file in out_dir) that the report links."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = {"json": out / "diagnosis.json", "report": out / "report.md"}
@@ -24,7 +25,12 @@ def write_diagnosis(diagnosis, out_dir) -> dict[str, Path]:
     files["ranking_plot"] = _plot_ranking(diagnosis, out / "ranking.png")
     if diagnosis.series:
         files["shrink_plot"] = _plot_shrink(diagnosis, out / "before_after.png")
-    files["report"].write_text(markdown(diagnosis, {k: v.name for k, v in files.items()}))
+    report = markdown(diagnosis, {k: v.name for k, v in files.items()})
+    if animations:
+        report += "\n## Animations (open offline in a browser)\n\n" + "".join(
+            f"- [{label}]({Path(path).name})\n" for label, path in animations.items())
+        files.update({f"animation_{k}": Path(p) for k, p in enumerate(animations.values())})
+    files["report"].write_text(report)
     return files
 
 

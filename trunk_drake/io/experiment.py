@@ -43,6 +43,10 @@ def load_experiment(paths, conditions: str | None = None) -> Experiment:
     if not files:
         raise ValueError(f"no trial files ({', '.join(TRIAL_SUFFIXES)}) in {[str(p) for p in paths]}")
     trials = [load_trial(f) for f in files]
+    rates = {f.name: round(t.fs, 6) for f, t in zip(files, trials)}
+    if len(set(rates.values())) > 1:
+        raise ValueError("the trials have different sampling rates (" + ", ".join(f"{n}: {r:g} Hz" for n, r in rates.items())
+                         + "): resample them to one rate (trunk_drake.signals.resample_uniform) before loading them together")
     beside = [*folders, *(f.parent for f in files)]
     cond_path = Path(conditions) if conditions else next((d / CONDITIONS_FILE for d in beside if (d / CONDITIONS_FILE).exists()), None)
     experiment = Experiment(trials, source=", ".join(map(str, files)))

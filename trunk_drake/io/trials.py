@@ -19,8 +19,9 @@ pelvis_force (N)            ``pelvis_force``, ``pelvis_fx``, ``force``
 lumbar_rotation (rad)       ``lumbar_rotation``, ``lumbar_angle``, ``lumbar_flexion``,
                             ``lumbar_total``, ``s1_l1``, ``s1_l1_angle`` (total: angle of
                             the S1-L1 link to the vertical, = sum of the five levels)
-levels (rad)                ``L5_S1_FE``, ``L4_L5_FE``, ``L3_L4_FE``, ``L2_L3_FE``,
-                            ``L1_L2_FE`` (sagittal flexion-extension per joint)
+levels (rad)                ``L5_S1_FE`` (or ``flex_extension``, see below), ``L4_L5_FE``,
+                            ``L3_L4_FE``, ``L2_L3_FE``, ``L1_L2_FE`` (sagittal
+                            flexion-extension per joint)
 trunk_in_space (rad)        ``trunk_in_space``, ``trunk_in_space_angle``, ``trunk_angle``
 emg (any unit)              any label starting with ``emg_`` (key: the rest of the label)
 ==========================  ==============================================================
@@ -30,10 +31,13 @@ maps non-standard labels explicitly (``field`` as in the table, or ``"emg:<name>
 
 Units and sign
 --------------
-SI inside: metres, newtons, radians, seconds; positive angle = flexion (DESIGN.md 4).
+SI inside: metres, newtons, radians, seconds; positive angle = flexion.
 Angles are converted from degrees when the column has a ``_deg`` suffix, or, without
 suffix, when the file header says ``inDegrees=yes`` (OpenSim convention) or
-``angle_units="deg"`` is passed. Displacements with ``_mm``/``_cm`` suffix (or
+``angle_units="deg"`` is passed. A file with a ``flex_extension`` column (the L5-S1
+coordinate of Lumbar_C_210.osim and MyoTorso, e.g. an OpenSim inverse-kinematics ``.mot``
+or trunk-drake's own states.sto) is in that model's convention, flexion negative: its
+five level angles are negated (``conversions`` shows the sign). Displacements with ``_mm``/``_cm`` suffix (or
 ``displacement_units="mm"``) are converted to metres.
 
 Plausibility checks (each failure is a ``ValueError`` that says what, where - file,
@@ -82,6 +86,10 @@ FIELD_ALIASES: dict[str, tuple[str, ...]] = {
 }
 for _lv in LUMBAR_LEVELS:
     FIELD_ALIASES[_lv] = (_lv.lower(),)
+#: Lumbar_C_210.osim (and MyoTorso) name the L5-S1 coordinate ``flex_extension`` and count
+#: flexion negative (trunk_drake.model.plant.opensim_coordinate).
+OPENSIM_L5_S1 = "flex_extension"
+FIELD_ALIASES["L5_S1_FE"] += (OPENSIM_L5_S1,)
 
 _KIND = {
     "platform_displacement": "length",
@@ -407,6 +415,10 @@ def trial_from_table(
             scale = 1.0
         values[fld] = v
         conv[fld] = scale
+    if "L5_S1_FE" in col_for and _split_suffix(col_for["L5_S1_FE"].lower(), "angle")[0] == OPENSIM_L5_S1:
+        for lv in LUMBAR_LEVELS:  # the .osim's convention: flexion negative
+            if lv in values:
+                values[lv], conv[lv] = -values[lv], -conv[lv]
     emg = {}
     for name, lab in emg_cols.items():
         v = table.column(lab).astype(float)

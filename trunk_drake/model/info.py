@@ -36,11 +36,17 @@ def model_info(model) -> dict:
     rel_joint, rel_body = com - joint_centre, com - body_centre
 
     groups = model.groups
+    rhythm = None
+    if model.coupling is not None:
+        rhythm = {"coordinate": model.coordinates[-1], "driver": spec.rhythm.driver, "source": spec.rhythm.source,
+                  "level_shares": dict(zip(model.levels, model.level_matrix[:, -1].tolist())),
+                  "routing": {c.name: float(g) for c, g in zip(model.joint_info, model.coupling[:, -1]) if c.name not in model.levels and g}}
     return {
         "model": spec.name,
         "source": spec.source,
         "dofs": model.dofs,
         "coordinates": model.coordinates,
+        "rhythm": rhythm,
         "n_muscles": model.n_muscles,
         "muscles_per_group": {g: len(m) for g, m in groups.items()},
         "absent_thesis_groups": load_toml("muscle_groups.toml")["absent"],
@@ -62,14 +68,22 @@ def format_model_info(info: dict) -> str:
     lines = [
         f"model {info['model']} ({info['source']}), configuration {info['dofs']!r}",
         f"coordinates ({len(info['coordinates'])}): {', '.join(info['coordinates'])}",
+        *([f"rhythm ({info['rhythm']['source']}): {info['rhythm']['coordinate']} = sum of the level angles; shares "
+           + ", ".join(f"{k} {v:.3f}" for k, v in info['rhythm']['level_shares'].items())
+           + "; routing " + ", ".join(f"{k} {v:+.4f} rad/rad" for k, v in info['rhythm']['routing'].items())] if info.get("rhythm") else []),
         f"muscles: {info['n_muscles']}",
         *(f"  {g:20s} {n:3d}" for g, n in info["muscles_per_group"].items()),
         "absent thesis groups: " + "; ".join(f"{g} ({why})" for g, why in info["absent_thesis_groups"].items()),
         f"total mass {info['total_mass_kg']:.2f} kg; upper body ({', '.join(ub['bodies'])}) {ub['mass_kg']:.2f} kg",
-        f"upper-body centre of mass: {100 * ub['com_anterior_of_L4_L5_joint_m']:+.1f} cm anterior and "
-        f"{100 * ub['com_superior_of_L4_L5_joint_m']:.1f} cm superior to the L4/L5 joint centre; "
-        f"{100 * ub['com_anterior_of_L4_body_centre_m']:+.1f} cm anterior to the L4 body centre",
-        f"  thesis (Schmid et al. model): {100 * ub['thesis_com_anterior_of_L4_m']:.1f} cm anterior to L4 -> "
-        + ("agrees (within 1 cm)" if ub["agrees_with_thesis"] else "does NOT agree: MyoTorso has no arms and a posterior lumped upper body"),
+        f"upper-body centre of mass: {_cm(ub['com_anterior_of_L4_L5_joint_m'], 'anterior', 'posterior')} and "
+        f"{_cm(ub['com_superior_of_L4_L5_joint_m'], 'superior', 'inferior')} to the L4/L5 joint centre; "
+        f"{_cm(ub['com_anterior_of_L4_body_centre_m'], 'anterior', 'posterior')} to the L4 body centre",
+        f"  thesis (Schmid et al. model): {_cm(ub['thesis_com_anterior_of_L4_m'], 'anterior', 'posterior')} to L4 -> "
+        + ("agrees (within 1 cm)" if ub["agrees_with_thesis"] else f"does NOT agree: {info['model']} has no arms and a posterior lumped upper body"),
     ]
     return "\n".join(lines)
+
+
+def _cm(metres: float, positive: str, negative: str) -> str:
+    """A signed distance in words: "1.1 cm posterior" for -0.011 with ("anterior", "posterior")."""
+    return f"{100 * abs(metres):.1f} cm {positive if metres >= 0 else negative}"

@@ -4,6 +4,11 @@ MyoTorso is compiled once with MuJoCo (myo-sim ships it as an MJCF spec) and its
 copied into plain dataclasses; MuJoCo is not used afterwards. Muscle Hill parameters are not
 taken from MyoTorso (its MuJoCo muscle parameters are tuned to MuJoCo's own curve): they are
 derived in `trunk_drake.model.architecture`.
+
+MyoTorso's lumbar rhythm (its equality constraints on ``flex_extension``) becomes the spec's
+`RhythmSpec`, with one correction: MuJoCo has no joint gearing, so MyoTorso makes its driver
+``flex_extension`` the L5/S1 hinge itself, while in Lumbar_C_210 L5/S1 turns 0.125 of it
+(models/reference_values.toml, kinematics.lumbar_rhythm). The reader restores that slope.
 """
 
 from __future__ import annotations
@@ -12,7 +17,10 @@ from functools import lru_cache
 
 import numpy as np
 
+from trunk_drake.data import load_toml
+from trunk_drake.model.levels import LEVELS
 from trunk_drake.model.paths import quat_matrix
+from trunk_drake.model.plant import opensim_coordinate
 from trunk_drake.model.spec import (
     BodySpec,
     CouplingSpec,
@@ -20,6 +28,7 @@ from trunk_drake.model.spec import (
     ModelSpec,
     MuscleSpec,
     PathElement,
+    RhythmSpec,
     SiteSpec,
     WrapSpec,
 )
@@ -28,6 +37,34 @@ _JOINT_KINDS = {2: "slide", 3: "hinge"}  # mjJNT_SLIDE, mjJNT_HINGE
 _WRAP_KINDS = {2: "sphere", 5: "cylinder"}  # mjGEOM_SPHERE, mjGEOM_CYLINDER
 _WRAP_SITE, _WRAP_SPHERE, _WRAP_CYLINDER = 3, 4, 5  # mjtWrap
 _EQ_JOINT = 2  # mjEQ_JOINT
+RHYTHM_DRIVER = "flex_extension"  # Lumbar_C_210's net lumbar flexion-extension coordinate
+RHYTHM_LEVELS = tuple(opensim_coordinate(f"{level}_FE")[0] for level in LEVELS)  # flexion joints, L5/S1 ... L1/L2
+
+
+def lumbar_c210_l5_s1_slope() -> float:
+    """Lumbar_C_210's L5/S1 flexion per unit of flex_extension (models/reference_values.toml)."""
+    return float(load_toml("reference_values.toml")["kinematics"]["lumbar_rhythm"]["l5_s1_flexion_slope"]["value"])
+
+
+def myotorso_rhythm(couplings, l5_s1_slope: float) -> RhythmSpec:
+    """The flexion rhythm of MyoTorso's equality constraints, L5/S1 turning `l5_s1_slope` of the driver.
+
+    ``l5_s1_slope=1`` is MyoTorso as shipped (its driver is the L5/S1 hinge);
+    `lumbar_c210_l5_s1_slope()` is the original model's rhythm.
+    """
+    ratios, routing = {RHYTHM_DRIVER: float(l5_s1_slope)}, {}
+    for c in couplings:
+        if c.driver != RHYTHM_DRIVER:
+            continue
+        if c.coef[0] != 0.0 or any(c.coef[2:]):
+            raise ValueError(f"MyoTorso coupling {c.name} is not proportional to {RHYTHM_DRIVER} (coefficients {c.coef})")
+        (ratios if c.joint in RHYTHM_LEVELS else routing)[c.joint] = c.coef[1]
+    missing = [j for j in RHYTHM_LEVELS if j not in ratios]
+    if missing:
+        raise ValueError(f"MyoTorso has no coupling of {missing} to {RHYTHM_DRIVER}: cannot build its lumbar rhythm")
+    source = "MyoTorso equality constraints" + ("" if l5_s1_slope == 1.0 else f", L5/S1 slope {l5_s1_slope:g} of Lumbar_C_210")
+    return RhythmSpec(RHYTHM_DRIVER, RHYTHM_LEVELS, tuple(ratios[j] for j in RHYTHM_LEVELS),
+                      tuple(routing), tuple(routing.values()), source)
 
 
 def compile_myotorso():
@@ -171,6 +208,7 @@ def read_myotorso() -> ModelSpec:
         wraps=tuple(wraps),
         muscles=tuple(muscles),
         couplings=tuple(couplings),
+        rhythm=myotorso_rhythm(couplings, lumbar_c210_l5_s1_slope()),
         gravity=m.opt.gravity.copy(),
         source=f"myo-sim {version('myo-sim')} myotorso (MuJoCo {mujoco.__version__})",
     )

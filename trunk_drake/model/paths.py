@@ -39,6 +39,33 @@ class PathState:
     velocities: np.ndarray | None = None  # (n_muscles,), = -moment_arms @ v
 
 
+@dataclass
+class PathPoints:
+    """World points of all muscle paths at one pose (for drawing; see `MusclePaths.routes`)."""
+
+    sites: np.ndarray  # (n_sites, 3) the path sites, in `MusclePaths` site order
+    tangents: np.ndarray  # (n_wraps, 2, 3) where each wrapped stretch meets and leaves its surface
+    wrap_lengths: np.ndarray  # (n_wraps,) arc length on the surface; -1 where the path misses it (tangents = its first site)
+
+
+@dataclass(frozen=True)
+class PathLayout:
+    """How muscle paths are drawn: per muscle its route, and where sites and wrap surfaces sit.
+
+    A route is a sequence of ("site", i) and ("wrap", h); a wrap stands between two sites.
+    Bodies are indices into the body list given to `MusclePaths`.
+    """
+
+    routes: tuple[tuple[tuple[str, int], ...], ...]
+    site_body: np.ndarray  # (n_sites,)
+    site_local: np.ndarray  # (n_sites, 3) in the body frame
+    wrap_body: np.ndarray  # (n_wraps,)
+    wrap_pos: np.ndarray  # (n_wraps, 3) centre in the body frame
+    wrap_rot: np.ndarray  # (n_wraps, 3, 3) orientation in the body frame (cylinder axis = local z)
+    wrap_radius: np.ndarray  # (n_wraps,)
+    wrap_cylinder: np.ndarray  # (n_wraps,) bool
+
+
 def quat_matrix(q) -> np.ndarray:
     """Rotation matrix of a unit quaternion (w, x, y, z)."""
     w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
@@ -281,18 +308,16 @@ def wrap(x0, x1, center, R, radius, cylinder, side, has_side, w0, w1, work):
 # Written with explicit 3-vector loops: tiny numpy temporaries and BLAS calls would dominate.
 
 @numba.njit(cache=True, inline="always")
-def _add_segment(m, P, a, ba, Q, b, bb, revolute, moves, axes, axo, lengths, grad):
-    """Add the straight segment P[a] (body ba) -> Q[b] (body bb) to muscle m."""
-    u0, u1, u2 = Q[b, 0] - P[a, 0], Q[b, 1] - P[a, 1], Q[b, 2] - P[a, 2]
-    L = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
-    lengths[m] += L
-    if L < MINVAL:
-        return
-    u0, u1, u2 = u0 / L, u1 / L, u2 / L
-    # u . (J_b - J_a); revolute column k: moves * a_k . (p x u) - u . (a_k x o_k)
-    ca0, ca1, ca2 = P[a, 1] * u2 - P[a, 2] * u1, P[a, 2] * u0 - P[a, 0] * u2, P[a, 0] * u1 - P[a, 1] * u0
-    cb0, cb1, cb2 = Q[b, 1] * u2 - Q[b, 2] * u1, Q[b, 2] * u0 - Q[b, 0] * u2, Q[b, 0] * u1 - Q[b, 1] * u0
+def add_pull(m, u0, u1, u2, pa, ba, pb, bb, revolute, moves, axes, axo, grad):
+    """grad[m] += u . (J_b - J_a) for points pa (on body ba) and pb (on body bb), unit vector u.
+
+    Revolute column k: moves * a_k . (p x u) - u . (a_k x o_k); prismatic: moves * u . a_k.
+    """
+    ca0, ca1, ca2 = pa[1] * u2 - pa[2] * u1, pa[2] * u0 - pa[0] * u2, pa[0] * u1 - pa[1] * u0
+    cb0, cb1, cb2 = pb[1] * u2 - pb[2] * u1, pb[2] * u0 - pb[0] * u2, pb[0] * u1 - pb[1] * u0
     for k in range(axes.shape[0]):
+        if moves[bb, k] == moves[ba, k]:  # the joint moves both points or neither: the terms cancel exactly
+            continue
         if revolute[k]:
             base = u0 * axo[k, 0] + u1 * axo[k, 1] + u2 * axo[k, 2]
             ja = axes[k, 0] * ca0 + axes[k, 1] * ca1 + axes[k, 2] * ca2 - base
@@ -302,19 +327,49 @@ def _add_segment(m, P, a, ba, Q, b, bb, revolute, moves, axes, axo, lengths, gra
         grad[m, k] += moves[bb, k] * jb - moves[ba, k] * ja
 
 
-@_jit
-def _path_kernel(R, p, axes, origins, revolute, moves, site_body, site_local, st, wr, wr_body, wr_pos, wr_rot,
-                 wr_radius, wr_cyl, n_muscles):
+@numba.njit(cache=True, inline="always")
+def _add_segment(m, P, a, ba, Q, b, bb, revolute, moves, axes, axo, lengths, grad):
+    """Add the straight segment P[a] (body ba) -> Q[b] (body bb) to muscle m."""
+    u0, u1, u2 = Q[b, 0] - P[a, 0], Q[b, 1] - P[a, 1], Q[b, 2] - P[a, 2]
+    L = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    lengths[m] += L
+    if L < MINVAL:
+        return
+    add_pull(m, u0 / L, u1 / L, u2 / L, P[a], ba, Q[b], bb, revolute, moves, axes, axo, grad)
+
+
+@numba.njit(cache=True, inline="always")
+def site_positions(R, p, site_body, site_local):
+    """World positions (n_sites, 3) of points given in their bodies' frames."""
     n_sites = site_body.shape[0]
     P = np.empty((n_sites, 3))
     for i in range(n_sites):
         b = site_body[i]
         for r in range(3):
             P[i, r] = R[b, r, 0] * site_local[i, 0] + R[b, r, 1] * site_local[i, 1] + R[b, r, 2] * site_local[i, 2] + p[b, r]
-    nc = axes.shape[0]
-    axo = np.empty((nc, 3))
-    for k in range(nc):
+    return P
+
+
+@numba.njit(cache=True, inline="always")
+def axis_moments(axes, origins):
+    """a_k x o_k for every joint axis (the point-independent part of a revolute Jacobian column)."""
+    axo = np.empty((axes.shape[0], 3))
+    for k in range(axes.shape[0]):
         _cross(axes[k], origins[k], axo[k])
+    return axo
+
+
+@_jit
+def _path_kernel(R, p, axes, origins, revolute, moves, site_body, site_local, st, wr, wr_body, wr_pos, wr_rot,
+                 wr_radius, wr_cyl, n_muscles, points_out, wrap_length_out):
+    """Lengths and length gradients; with non-empty `points_out` (n_sites + 2 n_wraps, 3) and
+    `wrap_length_out` (n_wraps,) also the world site points, the tangent points of every wrap
+    (both at its first site where the path misses the surface) and the wrapped arc lengths (-1)."""
+    P = site_positions(R, p, site_body, site_local)
+    n_sites = site_body.shape[0]
+    record = points_out.shape[0] > 0
+    axo = axis_moments(axes, origins)
+    nc = axes.shape[0]
     lengths = np.zeros(n_muscles)
     grad = np.zeros((n_muscles, nc))
     for h in range(st.shape[0]):
@@ -333,12 +388,19 @@ def _path_kernel(R, p, axes, origins, revolute, moves, site_body, site_local, st
                 Rw[r, c] = R[gb, r, 0] * wr_rot[h, 0, c] + R[gb, r, 1] * wr_rot[h, 1, c] + R[gb, r, 2] * wr_rot[h, 2, c]
         sp = P[side] if side >= 0 else P[a]
         wlen = wrap(P[a], P[b], cw, Rw, wr_radius[h], wr_cyl[h], sp, side >= 0, T[0], T[1], work)
+        if record:
+            wrap_length_out[h] = wlen
+            for r in range(3):
+                points_out[n_sites + 2 * h, r] = T[0, r] if wlen >= 0 else P[a, r]
+                points_out[n_sites + 2 * h + 1, r] = T[1, r] if wlen >= 0 else P[a, r]
         if wlen < 0:
             _add_segment(m, P, a, site_body[a], P, b, site_body[b], revolute, moves, axes, axo, lengths, grad)
         else:
             _add_segment(m, P, a, site_body[a], T, 0, gb, revolute, moves, axes, axo, lengths, grad)
             _add_segment(m, T, 1, gb, P, b, site_body[b], revolute, moves, axes, axo, lengths, grad)
             lengths[m] += wlen
+    if record:
+        points_out[:n_sites] = P
     return lengths, grad
 
 
@@ -361,9 +423,10 @@ class MusclePaths:
         def site_slot(s: int) -> int:
             return used_sites.setdefault(s, len(used_sites))
 
-        straight, wraps, geoms = [], [], []  # straight: (a, b, muscle); wraps: (a, b, side, muscle)
+        straight, wraps, geoms, routes = [], [], [], []  # straight: (a, b, muscle); wraps: (a, b, side, muscle)
         for m, mus in enumerate(spec.muscles):
             path = mus.path
+            route = [("site", site_slot(path[0].index))] if path and path[0].kind == "site" else []
             j = 0
             while j < len(path) - 1:
                 a, nxt = path[j], path[j + 1]
@@ -375,10 +438,13 @@ class MusclePaths:
                     side = -1 if nxt.side_site < 0 else site_slot(nxt.side_site)
                     wraps.append((site_slot(a.index), site_slot(path[j + 2].index), side, m))
                     geoms.append(spec.wraps[nxt.index])
+                    route += [("wrap", len(wraps) - 1), ("site", site_slot(path[j + 2].index))]
                     j += 2
                 else:
                     straight.append((site_slot(a.index), site_slot(nxt.index), m))
+                    route.append(("site", site_slot(nxt.index)))
                     j += 1
+            routes.append(tuple(route))
         order = sorted(used_sites, key=used_sites.get)
         self._site_body = np.array([body_index[spec.sites[s].body] for s in order], dtype=np.int64)
         self._site_local = np.array([spec.sites[s].pos for s in order], dtype=float)
@@ -389,6 +455,9 @@ class MusclePaths:
         self._wr_rot = np.array([quat_matrix(g.quat) for g in geoms], dtype=float).reshape(-1, 3, 3)
         self._wr_radius = np.array([g.radius for g in geoms], dtype=float)
         self._wr_cyl = np.array([g.kind == "cylinder" for g in geoms], dtype=np.bool_)
+        self.layout = PathLayout(tuple(routes), self._site_body, self._site_local, self._wr_body, self._wr_pos,
+                                 self._wr_rot, self._wr_radius, self._wr_cyl)
+        self._no_points, self._no_wrap_lengths = np.empty((0, 3)), np.empty(0)  # compute() records no points
 
     def bodies_used(self) -> set[int]:
         """Indices of the bodies whose poses `compute` reads."""
@@ -403,9 +472,21 @@ class MusclePaths:
         lengths, grad = _path_kernel(
             np.ascontiguousarray(R_body), np.ascontiguousarray(p_body), axes, origins, self._revolute, self._moves,
             self._site_body, self._site_local, self._st, self._wr, self._wr_body, self._wr_pos, self._wr_rot,
-            self._wr_radius, self._wr_cyl, self.n_muscles,
+            self._wr_radius, self._wr_cyl, self.n_muscles, self._no_points, self._no_wrap_lengths,
         )
         state = PathState(lengths=lengths, moment_arms=-grad)
         if v is not None:
             state.velocities = grad @ np.asarray(v, dtype=float)
         return state
+
+    def points(self, R_body: np.ndarray, p_body: np.ndarray) -> PathPoints:
+        """World points of every path (sites and wrap tangent points) from body poses."""
+        n_sites, n_wraps = len(self._site_body), len(self._wr)
+        points, wrap_lengths = np.empty((n_sites + 2 * n_wraps, 3)), np.empty(n_wraps)
+        no_coords = np.empty((0, 3))
+        _path_kernel(
+            np.ascontiguousarray(R_body), np.ascontiguousarray(p_body), no_coords, no_coords, self._revolute[:0],
+            np.ascontiguousarray(self._moves[:, :0]), self._site_body, self._site_local, self._st, self._wr, self._wr_body,
+            self._wr_pos, self._wr_rot, self._wr_radius, self._wr_cyl, self.n_muscles, points, wrap_lengths,
+        )
+        return PathPoints(points[:n_sites], points[n_sites:].reshape(n_wraps, 2, 3), wrap_lengths)

@@ -1,4 +1,4 @@
-"""Muscle models: Thelen 2003 Hill-type muscle (pure numpy, vectorised over muscles)."""
+"""Muscle models: Thelen 2003 Hill-type muscle, vectorised over muscles (numpy, with numba-compiled curves and rigid-tendon kernels)."""
 
 from .thelen import (
     THESIS_CONSTANTS,

@@ -1,4 +1,5 @@
-"""Thelen (2003) Hill-type muscle model, pure numpy, vectorised over muscles.
+"""Thelen (2003) Hill-type muscle model, vectorised over muscles (numpy; the per-step rigid-tendon
+path and the curves are numba-compiled scalar kernels).
 
 Reproduces OpenSim 4.6 ``Thelen2003Muscle`` (with its ``MuscleFixedWidthPennationModel``
 and ``MuscleFirstOrderActivationDynamicModel``) formula for formula:
@@ -170,6 +171,12 @@ class MuscleParameters:
         """Constant fiber 'thickness' ``l_opt sin(alpha_opt)`` (m), computed once."""
         return self.optimal_fiber_length * np.sin(self.pennation_angle_at_optimal)
 
+    @cached_property
+    def packed(self) -> np.ndarray:
+        """Rows l_slack, h, alpha_opt, l_opt, F_max: one contiguous array for the compiled kernels."""
+        return np.array([self.tendon_slack_length, self.parallelogram_height, self.pennation_angle_at_optimal,
+                         self.optimal_fiber_length, self.max_isometric_force])
+
 
 @dataclass
 class MuscleState:
@@ -209,10 +216,30 @@ class RigidTendonDerivatives(NamedTuple):
 
 # ----------------------------------------------------------------------------- curves
 
+_jit = numba.njit(cache=True)
+_UFUNC_SIGNATURE = ["float64(float64, float64, float64)"]
+
+
+@_jit
+def _fal(l_n, gamma):
+    d = l_n - 1.0
+    return math.exp(-(d * d) / gamma)
+
+
+@_jit
+def _fpe(l_n, k, e0):
+    if l_n > 1.0:
+        return (math.exp(k * (l_n - 1.0) / e0) - 1.0) / (math.exp(k) - 1.0)
+    return 0.0
+
+
+_fal_ufunc = numba.vectorize(["float64(float64, float64)"], cache=True)(_fal)
+_fpe_ufunc = numba.vectorize(_UFUNC_SIGNATURE, cache=True)(_fpe)
+
+
 def active_force_length(norm_fiber_length, constants: ThelenConstants = THESIS_CONSTANTS):
     """Gaussian active force-length multiplier, ``exp(-(l-1)^2 / gamma)``; 1 at l = 1."""
-    d = np.asarray(norm_fiber_length, dtype=float) - 1.0
-    return np.exp(-(d * d) / constants.gamma)
+    return _fal_ufunc(np.asarray(norm_fiber_length, dtype=float), constants.gamma)
 
 
 def active_force_length_derivative(norm_fiber_length,
@@ -224,11 +251,7 @@ def active_force_length_derivative(norm_fiber_length,
 
 def passive_force_length(norm_fiber_length, constants: ThelenConstants = THESIS_CONSTANTS):
     """Passive multiplier ``(exp(kPE (l-1)/e0) - 1) / (exp(kPE) - 1)`` for l > 1, else 0."""
-    l = np.asarray(norm_fiber_length, dtype=float)
-    k, e0 = constants.k_passive, constants.passive_strain_at_fmax
-    with np.errstate(over="ignore"):
-        f = (np.exp(k * (l - 1.0) / e0) - 1.0) / (math.exp(k) - 1.0)
-    return np.where(l > 1.0, f, 0.0)
+    return _fpe_ufunc(np.asarray(norm_fiber_length, dtype=float), constants.k_passive, constants.passive_strain_at_fmax)
 
 
 def passive_force_length_derivative(norm_fiber_length,
@@ -252,9 +275,9 @@ def _fv_shape(activation, constants):
     return c, k, x0, v0, s0
 
 
-@numba.vectorize(["float64(float64, float64, float64, float64, float64)"], cache=True)
-def _force_velocity(v, activation, af, flen, threshold):
-    """Scalar core of :func:`force_velocity` (compiled, broadcast over arrays)."""
+@_jit
+def _fv(v, activation, af, flen, threshold):
+    """Scalar core of :func:`force_velocity`."""
     c = 0.25 + 0.75 * activation
     if v <= -c:
         return 0.0
@@ -266,6 +289,9 @@ def _force_velocity(v, activation, af, flen, threshold):
     if v < v0:
         return (c + v * k * flen) / (c + v * k)
     return x0 + (v - v0) * k * (flen - x0) ** 2 / (c * (flen - 1.0))
+
+
+_force_velocity = numba.vectorize(["float64(float64, float64, float64, float64, float64)"], cache=True)(_fv)
 
 
 def force_velocity(norm_fiber_velocity, activation,
@@ -357,7 +383,7 @@ def minimum_fiber_length(params: MuscleParameters,
     return parallelogram_height(params) / math.sin(constants.maximum_pennation_angle)
 
 
-@numba.njit(cache=True)
+@_jit
 def _pennation(l, h, l_min, alpha_opt, max_pennation):
     """Scalar constant-thickness pennation angle (rad), capped at the maximum."""
     if alpha_opt <= _EPS:
@@ -400,45 +426,48 @@ def activation_derivative(excitation, activation,
     OpenSim 4.6 does); ``tau = tau_act (0.5 + 1.5 a)`` when u > a, else
     ``tau_deact / (0.5 + 1.5 a)``.
     """
-    u = np.asarray(excitation, dtype=float)
-    a = clamp_activation(activation, constants)
-    tau = np.where(u > a, constants.activation_time_constant * (0.5 + 1.5 * a),
-                   constants.deactivation_time_constant / (0.5 + 1.5 * a))
-    return (u - a) / tau
+    return _activation_rate(np.asarray(excitation, dtype=float), np.asarray(activation, dtype=float), constants.minimum_activation,
+                            constants.activation_time_constant, constants.deactivation_time_constant)
+
+
+@numba.vectorize(["float64(float64, float64, float64, float64, float64)"], cache=True)
+def _activation_rate(u, activation, a_min, tau_act, tau_deact):
+    a = min(1.0, max(a_min, activation))
+    if u > a:
+        return (u - a) / (tau_act * (0.5 + 1.5 * a))
+    return (u - a) * (0.5 + 1.5 * a) / tau_deact
 
 
 # ---------------------------------------------------------------------- rigid tendon
 
 def _broadcast(x, n):
+    if type(x) is np.ndarray and x.shape == (n,) and x.dtype == np.float64:  # the per-step case, without a copy
+        return x
     return np.broadcast_to(np.asarray(x, dtype=float), (n,))
 
 
-@numba.njit(cache=True)
-def _rigid_fiber(l_mt, v_mt, l_slack, h, l_min, alpha_opt, max_pennation):
-    """Compiled per-muscle loop: fiber length, pennation, cos, fiber velocity, clamped flag."""
+@_jit
+def _rigid_fiber(l_mt, v_mt, packed, max_pennation, v_max, gamma, k_pe, e0):
+    """Compiled per-muscle loop: rows fiber length, pennation, cos, fiber velocity, normalised length
+    and velocity, f_AL, f_PE (see RigidKinematics), and the clamped flags."""
     n = l_mt.shape[0]
-    l_f, phi, cos_phi, v_f = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    out = np.empty((8, n))
     clamped = np.empty(n, dtype=np.bool_)
-    cos_max = math.cos(max_pennation)
+    cos_max, sin_max = math.cos(max_pennation), math.sin(max_pennation)
     for i in range(n):
-        l_at = l_mt[i] - l_slack[i]
-        l_f[i] = math.sqrt(h[i] * h[i] + l_at * l_at) if l_at >= l_min[i] * cos_max else l_min[i]
-        clamped[i] = not (l_f[i] > l_min[i])
-        phi[i] = _pennation(l_f[i], h[i], l_min[i], alpha_opt[i], max_pennation)
-        cos_phi[i] = math.cos(phi[i])
-        v_f[i] = 0.0 if clamped[i] else v_mt[i] * cos_phi[i]
-    return l_f, phi, cos_phi, v_f, clamped
-
-
-def _rigid_kinematics(l_mt, v_mt, params, constants):
-    n = params.n_muscles
-    l_mt = np.ascontiguousarray(_broadcast(l_mt, n))
-    v_mt = np.ascontiguousarray(_broadcast(v_mt, n))
-    h = parallelogram_height(params)
-    l_f, phi, cos_phi, v_f, clamped = _rigid_fiber(
-        l_mt, v_mt, params.tendon_slack_length, h, minimum_fiber_length(params, constants),
-        params.pennation_angle_at_optimal, constants.maximum_pennation_angle)
-    return l_mt, v_mt, h, l_f, phi, cos_phi, v_f, clamped
+        l_slack, h, alpha_opt, l_opt = packed[0, i], packed[1, i], packed[2, i], packed[3, i]
+        l_min = h / sin_max
+        l_at = l_mt[i] - l_slack
+        l_f = math.sqrt(h * h + l_at * l_at) if l_at >= l_min * cos_max else l_min
+        clamped[i] = not (l_f > l_min)
+        phi = _pennation(l_f, h, l_min, alpha_opt, max_pennation)
+        cos_phi = math.cos(phi)
+        v_f = 0.0 if clamped[i] else v_mt[i] * cos_phi
+        l_n = l_f / l_opt
+        out[0, i], out[1, i], out[2, i], out[3, i] = l_f, phi, cos_phi, v_f
+        out[4, i], out[5, i] = l_n, v_f / (v_max * l_opt)
+        out[6, i], out[7, i] = _fal(l_n, gamma), _fpe(l_n, k_pe, e0)
+    return out, clamped
 
 
 class RigidKinematics(NamedTuple):
@@ -455,6 +484,17 @@ class RigidKinematics(NamedTuple):
     clamped: np.ndarray
 
 
+def _rigid_kinematics(l_mt, v_mt, params, constants) -> tuple[np.ndarray, np.ndarray, RigidKinematics]:
+    """Path length and velocity as arrays over muscles, and the fiber kinematics."""
+    n = params.n_muscles
+    l_mt = np.ascontiguousarray(_broadcast(l_mt, n))
+    v_mt = np.ascontiguousarray(_broadcast(v_mt, n))
+    rows, clamped = _rigid_fiber(l_mt, v_mt, params.packed, constants.maximum_pennation_angle,
+                                 constants.max_contraction_velocity, constants.gamma, constants.k_passive,
+                                 constants.passive_strain_at_fmax)
+    return l_mt, v_mt, RigidKinematics(*rows, clamped)
+
+
 def rigid_kinematics(l_mt, v_mt, params: MuscleParameters,
                      constants: ThelenConstants = THESIS_CONSTANTS) -> RigidKinematics:
     """Fiber kinematics and length multipliers for an inextensible tendon.
@@ -462,11 +502,18 @@ def rigid_kinematics(l_mt, v_mt, params: MuscleParameters,
     ``l_f cos(phi) = l_mt - l_slack`` and ``v_f = v_mt cos(phi)``; depends only on the path,
     so callers may reuse it for several activations (see :func:`rigid_tendon`).
     """
-    _, _, _, l_f, phi, cos_phi, v_f, clamped = _rigid_kinematics(l_mt, v_mt, params, constants)
-    l_n = l_f / params.optimal_fiber_length
-    v_n = v_f / (constants.max_contraction_velocity * params.optimal_fiber_length)
-    return RigidKinematics(l_f, phi, cos_phi, v_f, l_n, v_n, active_force_length(l_n, constants),
-                           passive_force_length(l_n, constants), clamped)
+    return _rigid_kinematics(l_mt, v_mt, params, constants)[2]
+
+
+@_jit
+def _rigid_force(activation, a_min, cos_phi, v_n, fal, fpe, clamped, f_max, af, flen, threshold):
+    """Compiled tendon force (N) of every muscle for `activation` (clamped to [a_min, 1] here)."""
+    force = np.empty(activation.shape[0])
+    for i in range(activation.shape[0]):
+        a = min(1.0, max(a_min, activation[i]))
+        active = 0.0 if clamped[i] else f_max[i] * a * fal[i] * _fv(v_n[i], a, af, flen, threshold)
+        force[i] = (active + fpe[i] * f_max[i]) * cos_phi[i]  # the operation order of rigid_tendon
+    return force
 
 
 def _rigid_fiber_forces(a, k: RigidKinematics, params, constants):
@@ -480,8 +527,10 @@ def _rigid_fiber_forces(a, k: RigidKinematics, params, constants):
 def rigid_tendon_force(activation, kinematics: RigidKinematics, params: MuscleParameters,
                        constants: ThelenConstants = THESIS_CONSTANTS) -> np.ndarray:
     """Tendon force (N) only, the per-step hot path of :func:`rigid_tendon`."""
-    _, active, passive = _rigid_fiber_forces(clamp_activation(activation, constants), kinematics, params, constants)
-    return (active + passive) * kinematics.cos_pennation
+    k = kinematics
+    return _rigid_force(np.ascontiguousarray(_broadcast(activation, params.n_muscles)), constants.minimum_activation,
+                        k.cos_pennation, k.normalized_fiber_velocity, k.active_force_length, k.passive_force_length,
+                        k.clamped, params.packed[4], constants.af, constants.flen, constants.fv_extrapolation_threshold)
 
 
 def rigid_tendon(activation, l_mt, v_mt, params: MuscleParameters,
@@ -520,13 +569,11 @@ def rigid_tendon_force_split(l_mt, v_mt, params: MuscleParameters,
     ``v_mt = 0``; otherwise f_V is taken at ``fv_activation`` (1, as OpenSim's static
     optimisation does). Activation is not clamped here.
     """
-    _, _, _, l_f, _, cos_phi, v_f, clamped = _rigid_kinematics(l_mt, v_mt, params, constants)
-    l_opt, f_max = params.optimal_fiber_length, params.max_isometric_force
-    l_n = l_f / l_opt
-    v_n = v_f / (constants.max_contraction_velocity * l_opt)
-    fv = force_velocity(v_n, fv_activation, constants)
-    active = np.where(clamped, 0.0, active_force_length(l_n, constants) * fv * f_max * cos_phi)
-    return ForceSplit(active, passive_force_length(l_n, constants) * f_max * cos_phi)
+    k = rigid_kinematics(l_mt, v_mt, params, constants)
+    f_max, cos_phi = params.max_isometric_force, k.cos_pennation
+    fv = force_velocity(k.normalized_fiber_velocity, fv_activation, constants)
+    active = np.where(k.clamped, 0.0, k.active_force_length * fv * f_max * cos_phi)
+    return ForceSplit(active, k.passive_force_length * f_max * cos_phi)
 
 
 def rigid_tendon_derivatives(activation, l_mt, v_mt, params: MuscleParameters,
@@ -539,13 +586,11 @@ def rigid_tendon_derivatives(activation, l_mt, v_mt, params: MuscleParameters,
     """
     a_raw = np.asarray(activation, dtype=float)
     a = clamp_activation(a_raw, constants)
-    l_mt, v_mt, h, l_f, _, cos_phi, v_f, clamped = _rigid_kinematics(l_mt, v_mt, params,
-                                                                       constants)
-    l_opt, f_max = params.optimal_fiber_length, params.max_isometric_force
+    l_mt, v_mt, k = _rigid_kinematics(l_mt, v_mt, params, constants)
+    l_f, cos_phi, clamped = k.fiber_length, k.cos_pennation, k.clamped
+    l_n, v_n, fal, fpe = k.normalized_fiber_length, k.normalized_fiber_velocity, k.active_force_length, k.passive_force_length
+    l_opt, f_max, h = params.optimal_fiber_length, params.max_isometric_force, parallelogram_height(params)
     vscale = constants.max_contraction_velocity * l_opt
-    l_n, v_n = l_f / l_opt, v_f / vscale
-    fal = active_force_length(l_n, constants)
-    fpe = passive_force_length(l_n, constants)
     fv = force_velocity(v_n, a, constants)
     dfv_dv, dfv_da = force_velocity_derivatives(v_n, a, constants)
     active = np.where(clamped, 0.0, 1.0)

@@ -16,16 +16,17 @@ interaction (measured trials).
 from __future__ import annotations
 
 import time as _time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
+from tqdm import tqdm
 
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.io.prepared import PreparedTrial, prepare_trials
 from trunk_drake.metadata import json_default
 from trunk_drake.optim.gains import GAIN_BOUNDS, GainLayout
 from trunk_drake.optim.least_squares import finite_difference_jacobian, inverse_or_inf, levenberg_marquardt
+from trunk_drake.parallel import WorkerPool
 from trunk_drake.signals import estimate_frf, vaf
 from trunk_drake.simulation import SimulationError, simulate
 
@@ -89,18 +90,10 @@ class Objective:
         return np.concatenate(parts), engaged
 
 
-_WORKER: Objective | None = None
-
-
-def _init_worker(spec, dofs, targets, layout, options, accuracy):
-    global _WORKER
-    from trunk_drake.model.trunk_model import load_model
-
-    _WORKER = Objective(load_model(dofs, spec=spec), targets, layout, options, accuracy)
-
-
-def _evaluate(x):
-    return _WORKER(x)
+def _evaluate(model, job):
+    """Worker job: the residuals at x of the objective (targets, layout, options, accuracy)."""
+    x, problem = job
+    return Objective(model, *problem)(x)
 
 
 @dataclass
@@ -186,13 +179,19 @@ def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_
     cache: dict[bytes, np.ndarray] = {}
     counter = {"simulations": 0}
 
-    pool = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
-                               initargs=(model.spec, model.dofs, targets, layout, options, accuracy)) if workers > 1 else None
-    local = None if pool else Objective(model, targets, layout, options, accuracy)
+    problem = (targets, layout, options, accuracy)
+    pool = WorkerPool(model, workers)
 
-    def evaluate_many(points):
+    def evaluate_many(points, what="cost"):
         todo = [p for p in points if p.tobytes() not in cache]
-        results = list(pool.map(_evaluate, todo)) if pool else [local(p) for p in todo]
+        results = [None] * len(todo)
+        with tqdm(total=len(todo) * len(targets), desc=f"  start {current['start'] + 1}/{n_starts}: {what}", unit="sim",
+                  leave=False, disable=not progress or not todo) as bar:
+            for i, result, error in pool.completed(_evaluate, [(p, problem) for p in todo]):
+                if error is not None:
+                    raise error
+                results[i] = result
+                bar.update(len(targets))
         for p, (r, engaged) in zip(todo, results):
             cache[p.tobytes()] = (r, engaged)
             counter["simulations"] += len(targets)
@@ -206,12 +205,15 @@ def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_
         x = np.asarray(x, float)
         r0, engaged = evaluate_many([x])[0]
         active = np.concatenate([engaged, np.ones(len(layout.groups), dtype=bool)])  # kp columns, then kv
-        return finite_difference_jacobian(lambda points: [r for r, _ in evaluate_many(points)], x, fd_step, upper=hi,
-                                          columns=np.flatnonzero(active), r0=r0)
+        return finite_difference_jacobian(lambda points: [r for r, _ in evaluate_many(points, "Jacobian")], x, fd_step,
+                                          upper=hi, columns=np.flatnonzero(active), r0=r0)
 
     current = {"start": 0}
     starts = []
-    try:
+    if progress:
+        print(f"fitting {len(layout.names)} gains to {len(targets)} target(s) ({sum(t.time.size for t in targets)} samples) "
+              f"on {max(1, workers)} worker(s); {n_starts} start(s), at most {max_iterations} iterations each", flush=True)
+    with pool:
         for k, x0 in enumerate(start_points(layout, scenario, n_starts, seed, start)):
             current["start"] = k
             before = counter["simulations"]
@@ -221,9 +223,6 @@ def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_
         best = min(starts, key=lambda s: s.cost)
         J = jac(best.x)  # a fresh finite-difference Jacobian for the covariance
         r = fun(best.x)
-    finally:
-        if pool:
-            pool.shutdown()
 
     dof = max(1, r.size - best.x.size)
     cov = float(r @ r) / dof * inverse_or_inf(J.T @ J)
@@ -231,8 +230,7 @@ def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_
     std_x = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     std_free = dict(zip(layout.names, ((10.0 ** best.x) * np.log(10.0) * std_x).tolist()))
     std = {k: {g: std_free.get(f"{k}.{g}", 0.0) for g in gains[k]} for k in gains}  # fixed gains: 0
-    objective = local or Objective(model, targets, layout, options, accuracy)
-    vafs, frfs, series = goodness_of_fit(objective, best.x, targets)
+    vafs, frfs, series = goodness_of_fit(Objective(model, *problem), best.x, targets)
     return FitResult(gains, std, layout.names, cov, float(0.5 * r @ r), vafs, frfs, series, history, starts,
                      counter["simulations"] + len(targets), _time.perf_counter() - wall,
                      options={"scenario": scenario, "groups": list(layout.groups), "n_starts": n_starts,

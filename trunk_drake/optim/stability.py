@@ -453,9 +453,10 @@ def static_analysis(model, options: TrunkOptions, q, activations, params=None) -
     mask = np.ones(model.n_muscles) if options.muscle_mask is None else np.asarray(options.muscle_mask, float)
     force = thelen.rigid_tendon(a, path.lengths, path.velocities, params, constants).tendon_force * mask
     slope = thelen.rigid_tendon_derivatives(a, path.lengths, path.velocities, params, constants).d_length * mask
-    fe = rotation_coordinates(model)
-    bushing = np.zeros(len(q))
-    bushing[fe] = np.broadcast_to(np.asarray(options.stiffness, float), (len(fe),)) * (1.0 + 3.0 * options.cubic * q[fe] ** 2)
+    L = model.level_matrix  # the bushings act on the level angles (coupled in the rhythm)
+    angles = L @ q
+    level_stiffness = np.broadcast_to(np.asarray(options.stiffness, float), (len(L),)) * (1.0 + 3.0 * options.cubic * angles**2)
+    bushing = L.T @ (level_stiffness[:, None] * L)
     srs = None
     if options.srs is not None:
         kin = thelen.rigid_kinematics(path.lengths, path.velocities, params, constants)

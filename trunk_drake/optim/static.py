@@ -6,7 +6,11 @@ external loads must produce the inverse-dynamics generalized force of every free
     R^T (a * F_active + F_passive) + reserves = M vdot + C v - tau_g - tau_bushing - J^T F_ext
 
 (R: moment arms = -dL/dq; F_active = f_AL f_V F_max cos(phi) and F_passive = f_PE F_max cos(phi)
-of a rigid tendon, so the tendon force is linear in activation). Among the activations in
+of a rigid tendon, so the tendon force is linear in activation; the bushings act on the level
+angles ``L q`` of ``model.level_matrix``, i.e. as ``L^T`` of their moments). With a deflection
+tolerance, each level's bushing may also carry up to ``k * tolerance`` beyond that: the level may
+deflect within the tolerated angle instead of balancing exactly (geometry and gravity stay those of
+the posture: a first-order model). Among the activations in
 [min_activation, max_activation] that satisfy it, the one minimising sum(a^p) is chosen:
 p = 1 is a linear program, p = 2 a quadratic program (both Clarabel, an interior-point conic
 solver: exact bounds, no tuning), any other p >= 1 goes to IPOPT with an analytic gradient.
@@ -53,7 +57,12 @@ class StaticInfeasibleError(ValueError):
 
 @dataclass(frozen=True)
 class PointLoad:
-    """An external force (N, world frame) at `point` (m, in the frame of `body`)."""
+    """An external force (N, world frame) at `point` (m, in the frame of `body`).
+
+    The world frame is MyoTorso's: z up, -y anterior (forwards), +x to the subject's left, so a
+    forward push is ``(0, -F, 0)``, not ``(F, 0, 0)`` (that bends the trunk sideways). The body
+    frames are the OpenSim lumbar model's: x anterior, y superior, z right.
+    """
 
     body: str
     point: tuple[float, float, float]
@@ -62,10 +71,12 @@ class PointLoad:
 
 @dataclass
 class MomentBalance:
-    """The linear balance ``R^T (a * active + passive) + reserves = required`` over `coordinates`.
+    """The linear balance ``R^T (a * active + passive) + D d + reserves = required`` over `coordinates`.
 
     `moment_arms` (n_muscles, n_coordinates), `active`/`passive` (n_muscles,) in N, `required`
-    (n_coordinates,) in Nm (N for translations).
+    (n_coordinates,) in Nm (N for translations). `deflection` D (n_coordinates, n_levels) and
+    `deflection_limit` (n_levels,): extra bushing moments d, |d| <= limit (Nm), that deflecting
+    levels may supply (none by default: exact balance).
     """
 
     moment_arms: np.ndarray
@@ -74,6 +85,8 @@ class MomentBalance:
     required: np.ndarray
     coordinates: tuple[str, ...]
     muscles: tuple[str, ...]
+    deflection: np.ndarray | None = None
+    deflection_limit: np.ndarray | None = None
 
     def __post_init__(self):
         self.moment_arms = np.atleast_2d(np.asarray(self.moment_arms, dtype=float))
@@ -86,6 +99,15 @@ class MomentBalance:
         if len(self.coordinates) != m or len(self.muscles) != n:
             raise ValueError(f"MomentBalance: {len(self.muscles)} muscle and {len(self.coordinates)} coordinate "
                              f"names for a moment-arm matrix of shape {self.moment_arms.shape}")
+        self.deflection = np.zeros((m, 0)) if self.deflection is None else np.asarray(self.deflection, float).reshape(m, -1)
+        limit = np.zeros(0) if self.deflection_limit is None else np.asarray(self.deflection_limit, float)
+        self.deflection_limit = np.broadcast_to(limit, (self.deflection.shape[1],)).copy()
+        if np.any(self.deflection_limit < 0) or not np.all(np.isfinite(self.deflection_limit)):
+            raise ValueError("MomentBalance.deflection_limit must be finite and >= 0")
+
+    def with_deflection(self, A: np.ndarray) -> np.ndarray:
+        """`A` (n_coordinates, k) with the deflection moments' columns appended."""
+        return np.hstack([A, self.deflection])
 
     @property
     def activation_matrix(self) -> np.ndarray:
@@ -117,6 +139,7 @@ class StaticResult:
     cost: float                  # sum(a^p) (+ reserve terms)
     solve_time: float            # s, solver only
     options: dict = field(default_factory=dict)
+    deflection_moments: np.ndarray = field(default_factory=lambda: np.zeros(0))  # Nm carried by deflecting levels
 
     @property
     def success(self) -> bool:
@@ -158,12 +181,13 @@ def _power_cost(p: float):
 class ActivationProgram:
     """A MathematicalProgram for one problem size, built once and re-solved with new data.
 
-    Decision variables: activations (n) and, if `reserve_strength` is given (m,), reserve
+    Decision variables: activations (n); if `reserve_strength` is given (m,), reserve
     excitations split into positive and negative parts (both >= 0, each costing r^p, so the
-    reserve's generalized force is ``strength * (r+ - r-)``).
+    reserve's generalized force is ``strength * (r+ - r-)``); `n_deflection` bushing moments of
+    deflecting levels (free of cost, bounded by the balance's deflection_limit).
     """
 
-    def __init__(self, n_muscles: int, n_coordinates: int, p: float = 2.0, reserve_strength=None):
+    def __init__(self, n_muscles: int, n_coordinates: int, p: float = 2.0, reserve_strength=None, n_deflection: int = 0):
         self.n, self.m, self.p = n_muscles, n_coordinates, float(p)
         self.reserve_strength = None if reserve_strength is None else np.broadcast_to(
             np.asarray(reserve_strength, dtype=float), (n_coordinates,)).copy()
@@ -173,17 +197,19 @@ class ActivationProgram:
         prog = MathematicalProgram()
         self.a = prog.NewContinuousVariables(n_muscles, "a")
         self.r = prog.NewContinuousVariables(nr, "r")
-        self.x = np.concatenate([self.a, self.r])
+        self.d = prog.NewContinuousVariables(n_deflection, "d")
+        self.x = np.concatenate([self.a, self.r, self.d])
+        paid = np.concatenate([self.a, self.r])
         self._bounds = prog.AddBoundingBoxConstraint(np.zeros(len(self.x)), np.full(len(self.x), np.inf), self.x)
         self._balance = prog.AddLinearEqualityConstraint(np.zeros((n_coordinates, len(self.x))), np.zeros(n_coordinates), self.x)
         if self.p == 1.0:
-            prog.AddLinearCost(np.ones(len(self.x)), self.x)
+            prog.AddLinearCost(np.ones(len(paid)), paid)
             self.solver = ClarabelSolver()
         elif self.p == 2.0:
-            prog.AddQuadraticCost(2.0 * np.eye(len(self.x)), np.zeros(len(self.x)), self.x, is_convex=True)
+            prog.AddQuadraticCost(2.0 * np.eye(len(paid)), np.zeros(len(paid)), paid, is_convex=True)
             self.solver = ClarabelSolver()
         else:
-            prog.AddCost(_power_cost(self.p), self.x)
+            prog.AddCost(_power_cost(self.p), paid)
             self.solver = IpoptSolver()
         self.options = SolverOptions()
         if isinstance(self.solver, IpoptSolver):
@@ -192,31 +218,34 @@ class ActivationProgram:
         self.prog = prog
 
     def solve(self, balance: MomentBalance, min_activation: float, max_activation: float):
-        """(status, activations, reserve generalized forces, cost, solve time)."""
-        if balance.moment_arms.shape != (self.n, self.m):
-            raise ValueError(f"balance has shape {balance.moment_arms.shape}, this program was built for {(self.n, self.m)}")
+        """(status, activations, reserve generalized forces, deflection moments, cost, solve time)."""
+        nd = len(self.d)
+        if balance.moment_arms.shape != (self.n, self.m) or balance.deflection.shape[1] != nd:
+            raise ValueError(f"balance has shape {balance.moment_arms.shape} with {balance.deflection.shape[1]} deflecting "
+                             f"levels, this program was built for {(self.n, self.m)} with {nd}")
         A = balance.activation_matrix
         nr = len(self.r)
         if nr:
             S = np.diag(self.reserve_strength)
             A = np.hstack([A, S, -S])
+        A = balance.with_deflection(A)
         b = balance.target
         self._balance.evaluator().UpdateCoefficients(A, b)
-        lower = np.concatenate([np.full(self.n, min_activation), np.zeros(nr)])
-        upper = np.concatenate([np.full(self.n, max_activation), np.full(nr, np.inf)])
+        lower = np.concatenate([np.full(self.n, min_activation), np.zeros(nr), -balance.deflection_limit])
+        upper = np.concatenate([np.full(self.n, max_activation), np.full(nr, np.inf), balance.deflection_limit])
         self._bounds.evaluator().set_bounds(lower, upper)
         if isinstance(self.solver, IpoptSolver):
-            self.prog.SetInitialGuessForAllVariables(np.concatenate([np.full(self.n, 0.5 * (min_activation + max_activation)), np.zeros(nr)]))
+            self.prog.SetInitialGuessForAllVariables(np.concatenate([np.full(self.n, 0.5 * (min_activation + max_activation)), np.zeros(nr + nd)]))
         start = time.perf_counter()
         result = self.solver.Solve(self.prog, None, self.options)
         elapsed = time.perf_counter() - start
         if not result.is_success():
-            return str(result.get_solution_result()).split(".")[-1], None, None, np.nan, elapsed
+            return str(result.get_solution_result()).split(".")[-1], None, None, None, np.nan, elapsed
         x = _polish(result.GetSolution(self.x), A, b, lower, upper)
         a = x[: self.n]
-        reserve = np.zeros(self.m) if not nr else self.reserve_strength * (x[self.n : self.n + self.m] - x[self.n + self.m :])
-        cost = float(np.sum(np.abs(x) ** self.p))
-        return "solved", a, reserve, cost, elapsed
+        reserve = np.zeros(self.m) if not nr else self.reserve_strength * (x[self.n : self.n + self.m] - x[self.n + self.m : self.n + nr])
+        cost = float(np.sum(np.abs(x[: self.n + nr]) ** self.p))
+        return "solved", a, reserve, x[self.n + nr:], cost, elapsed
 
 
 def _polish(x, A, b, lower, upper):
@@ -242,9 +271,12 @@ def diagnose_infeasible(balance: MomentBalance, min_activation: float, max_activ
     prog = MathematicalProgram()
     a = prog.NewContinuousVariables(n, "a")
     s = prog.NewContinuousVariables(2 * m, "s")
+    d = prog.NewContinuousVariables(balance.deflection.shape[1], "d")
     prog.AddBoundingBoxConstraint(min_activation, max_activation, a)
     prog.AddBoundingBoxConstraint(0.0, np.inf, s)
-    prog.AddLinearEqualityConstraint(np.hstack([balance.activation_matrix, np.eye(m), -np.eye(m)]), balance.target, np.concatenate([a, s]))
+    prog.AddBoundingBoxConstraint(-balance.deflection_limit, balance.deflection_limit, d)
+    prog.AddLinearEqualityConstraint(balance.with_deflection(np.hstack([balance.activation_matrix, np.eye(m), -np.eye(m)])),
+                                     balance.target, np.concatenate([a, s, d]))
     prog.AddLinearCost(np.concatenate([np.zeros(n), np.ones(2 * m)]), np.concatenate([a, s]))
     result = ClarabelSolver().Solve(prog)
     if not result.is_success():
@@ -283,16 +315,17 @@ def solve_balance(balance: MomentBalance, p: float = 2.0, min_activation: float 
     """
     _check_bounds(p, min_activation, max_activation)
     n, m = balance.moment_arms.shape
-    prog = program or ActivationProgram(n, m, p, reserves)
-    status, a, reserve, cost, elapsed = prog.solve(balance, min_activation, max_activation)
+    prog = program or ActivationProgram(n, m, p, reserves, balance.deflection.shape[1])
+    status, a, reserve, deflection, cost, elapsed = prog.solve(balance, min_activation, max_activation)
     if a is None:
         raise infeasible_error(balance, min_activation, max_activation, status, where)
     forces = a * balance.active + balance.passive
-    residuals = balance.moment_arms.T @ forces + reserve - balance.required
+    residuals = balance.moment_arms.T @ forces + reserve + balance.deflection @ deflection - balance.required
     return StaticResult(
         activations=a, forces=forces, reserve_forces=reserve, residuals=residuals, required=balance.required,
         coordinates=balance.coordinates, muscles=balance.muscles, status=status, solver=prog.solver.solver_id().name(),
         p=float(p), min_activation=float(min_activation), max_activation=float(max_activation), cost=cost, solve_time=elapsed,
+        deflection_moments=deflection,
     )
 
 
@@ -318,16 +351,23 @@ class StaticOptimizer:
     `locked` (coordinate names or globs whose equilibrium is not required: held by a lock),
     `strength_scale` (multiplies F_max), `constants` (thelen.ThelenConstants),
     `bushing_stiffness`/`bushing_damping` (per lumbar flexion-extension level, as the diagram;
-    0 disables). Velocity enters the force-velocity curve at full activation (as OpenSim).
+    0 disables), `deflection_tolerance` (rad: each level may deflect on its bushing up to this
+    angle instead of balancing exactly; independent levels only). Velocity enters the
+    force-velocity curve at full activation (as OpenSim).
     """
 
     def __init__(self, model, *, p: float = 2.0, min_activation: float = 0.01, max_activation: float = 1.0,
                  include_passive: bool = True, reserves=None, locked=(), strength_scale: float = 1.0,
                  constants: thelen.ThelenConstants | None = None, bushing_stiffness=DEFAULT_STIFFNESS,
-                 bushing_damping=DEFAULT_DAMPING):
+                 bushing_damping=DEFAULT_DAMPING, deflection_tolerance: float = 0.0):
         _check_bounds(p, min_activation, max_activation)
         if not strength_scale > 0:
             raise ValueError(f"strength_scale={strength_scale!r} must be > 0")
+        if not (np.isfinite(deflection_tolerance) and deflection_tolerance >= 0):
+            raise ValueError(f"deflection_tolerance={deflection_tolerance!r} must be an angle >= 0 (rad)")
+        if deflection_tolerance and model.coupling is not None:
+            raise ValueError(f"deflection_tolerance applies to independent levels ('sagittal', 'spine3d'); in the "
+                             f"{model.dofs!r} configuration the levels cannot deflect on their own")
         self.model = model
         self.p, self.min_activation, self.max_activation = float(p), float(min_activation), float(max_activation)
         self.include_passive = include_passive
@@ -341,14 +381,19 @@ class StaticOptimizer:
         if not len(self.free):
             raise ValueError("every coordinate is locked: nothing to balance")
         self.coordinates = tuple(coords[i] for i in self.free)
-        self.fe = np.array([coords.index(f"{lvl}_FE") for lvl in LEVELS])
-        self.k = np.broadcast_to(np.asarray(bushing_stiffness, float), (len(LEVELS),)).copy()
-        self.c = np.broadcast_to(np.asarray(bushing_damping, float), (len(LEVELS),)).copy()
+        self.levels = model.level_matrix  # level angles = levels @ q
+        n_levels = len(self.levels)
+        self.k = np.broadcast_to(np.asarray(bushing_stiffness, float), (n_levels,)).copy()
+        self.c = np.broadcast_to(np.asarray(bushing_damping, float), (n_levels,)).copy()
+        self.deflection_tolerance = float(deflection_tolerance)
+        deflecting = np.flatnonzero(self.k * self.deflection_tolerance > 0)
+        self.deflection = self.levels[deflecting][:, self.free].T
+        self.deflection_limit = self.k[deflecting] * self.deflection_tolerance
         self.options = {"p": self.p, "min_activation": self.min_activation, "max_activation": self.max_activation,
                         "include_passive": include_passive, "reserves": reserves, "locked": self.locked,
                         "strength_scale": float(strength_scale), "bushing_stiffness": self.k.tolist(),
-                        "bushing_damping": self.c.tolist()}
-        self.program = ActivationProgram(model.n_muscles, len(self.free), self.p, reserves)
+                        "bushing_damping": self.c.tolist(), "deflection_tolerance": self.deflection_tolerance}
+        self.program = ActivationProgram(model.n_muscles, len(self.free), self.p, reserves, len(deflecting))
 
     def set_state(self, q, v=None, vdot=None):
         """Put (q, v) into the optimizer's plant context; returns checked (q, v, vdot)."""
@@ -376,14 +421,14 @@ class StaticOptimizer:
         q, v, vdot = self.set_state(q, v, vdot)
         plant, ctx = self.plant, self.context
         inverse_dynamics = plant.CalcMassMatrix(ctx) @ vdot + plant.CalcBiasTerm(ctx) - plant.CalcGravityGeneralizedForces(ctx)
-        bushing = np.zeros_like(inverse_dynamics)
-        bushing[self.fe] = -self.k * q[self.fe] - self.c * v[self.fe]
+        L = self.levels
+        bushing = L.T @ (-self.k * (L @ q) - self.c * (L @ v))
         required = inverse_dynamics - bushing - self.generalized_load(external_loads)
         path = self.model.path_state(q, v)
         split = thelen.rigid_tendon_force_split(path.lengths, path.velocities, self.params, self.constants)
         passive = split.passive if self.include_passive else np.zeros_like(split.passive)
         return MomentBalance(path.moment_arms[:, self.free], split.active, passive, required[self.free],
-                             self.coordinates, tuple(self.model.muscles))
+                             self.coordinates, tuple(self.model.muscles), self.deflection, self.deflection_limit)
 
     def solve_balance(self, balance: MomentBalance, where: str = "") -> StaticResult:
         result = solve_balance(balance, self.p, self.min_activation, self.max_activation, program=self.program, where=where)
@@ -410,8 +455,8 @@ def coactivation(model, min_activation: float = 0.020, q=None, reserves: float =
                  return_result: bool = False, **options):
     """Feed-forward excitation (n_muscles,) that holds the upright posture under gravity.
 
-    Static optimisation of the lumbar flexion-extension coordinates (seed 3.2.3; every other
-    coordinate, e.g. pelvis_tx, is locked) with activations >= `min_activation`; at steady
+    Static optimisation of the lumbar flexion-extension coordinates (seed 3.2.3: the level
+    angles, or the rhythm's lumbar_FE; every other coordinate, e.g. pelvis_tx, is locked) with activations >= `min_activation`; at steady
     state excitation equals activation, so the result feeds ``TrunkOptions(feedforward=...)``.
     The thesis used 0.010, 0.011, 0.020 and 0.070 (COACTIVATION_LEVELS) and kept 0.020.
 
@@ -421,15 +466,16 @@ def coactivation(model, min_activation: float = 0.020, q=None, reserves: float =
     muscle) take the remainder, and a warning names it with the settling of the bushings that
     would carry it. With ``return_result`` the StaticResult comes too: ``(excitation, result)``.
     """
-    fe = [f"{lvl}_FE" for lvl in LEVELS]
-    locked = [c for c in model.coordinates if c not in fe]
+    free = [model.coordinates[i] for i in np.flatnonzero(np.abs(model.level_matrix).sum(axis=0) > 0)]
+    locked = [c for c in model.coordinates if c not in free]
     q = np.zeros(len(model.coordinates)) if q is None else q
     try:
         result = StaticOptimizer(model, min_activation=min_activation, locked=locked, **options).solve(q)
     except StaticInfeasibleError:
         optimizer = StaticOptimizer(model, min_activation=min_activation, locked=locked, reserves=reserves, **options)
         result = optimizer.solve(q)
-        k = dict(zip(fe, optimizer.k))
+        L = model.level_matrix[:, [model.coordinates.index(c) for c in free]]
+        k = dict(zip(free, L.T**2 @ optimizer.k))  # stiffness of each balanced coordinate through the bushings
         detail = ", ".join(f"{c} {f:+.3g} Nm (~{np.degrees(abs(f) / k[c]) if k[c] > 0 else np.inf:.2g} deg on the bushing)"
                            for c, f in result.reserves_used.items() if abs(f) > 1e-3)
         warnings.warn(f"co-activation at min_activation={min_activation}: the muscles leave {detail} unbalanced; "
@@ -440,3 +486,46 @@ def coactivation(model, min_activation: float = 0.020, q=None, reserves: float =
 def with_required(balance: MomentBalance, extra) -> MomentBalance:
     """`balance` with `extra` generalized force (same coordinates) added to what must be supplied."""
     return replace(balance, required=balance.required + np.asarray(extra, float))
+
+
+VERTEBRAE = ("L5", "L4", "L3", "L2", "L1")  # the body above each level of LEVELS (L1 carries the upper body)
+
+
+def vertebra_balances(balance: MomentBalance, min_activation: float = 0.0, max_activation: float = 1.0,
+                      per_newton=None, top: int = 4) -> list[dict]:
+    """Each lumbar vertebra's own moment balance in a model with independent flexion levels.
+
+    The body above level k sits between level k and level k+1, so its equilibrium is the
+    difference of the two level balances: each muscle contributes the difference of its moment
+    arms at the two levels (one inserting on the vertebra crosses only level k; one passing it
+    contributes through the change of its lever arm from one joint centre to the other), and
+    together they must supply ``need`` (Nm, flexion of the vertebra relative to its neighbours;
+    beyond passive force and activation floor) plus ``per_newton`` times the load. ``capacity`` is the largest flexing and extending moment those
+    muscles give within the activation bounds; ``load_limit`` the load at which this vertebra
+    alone runs out (N; None without a load or if it never does).
+    """
+    names = [f"{lvl}_FE" for lvl in LEVELS]
+    index = [balance.coordinates.index(n) for n in names if n in balance.coordinates]
+    if len(index) != len(LEVELS):
+        raise ValueError(f"vertebra balances need the independent flexion levels {names}; the balance has {balance.coordinates}")
+    A = balance.activation_matrix
+    floor = balance.target - A @ np.full(A.shape[1], min_activation)
+    out = []
+    for k, vertebra in enumerate(VERTEBRAE):
+        row = np.zeros(len(balance.coordinates))
+        row[index[k]] = 1.0
+        if k + 1 < len(index):
+            row[index[k + 1]] = -1.0
+        moment = row @ A * (max_activation - min_activation)  # per muscle, from its floor to full activation
+        need = float(row @ floor)
+        capacity = (float(moment[moment < 0].sum()), float(moment[moment > 0].sum()))
+        entry = {"vertebra": vertebra, "between": [names[k], names[k + 1] if k + 1 < len(names) else None], "need_Nm": need,
+                 "capacity_Nm": capacity, "flexing": [(balance.muscles[i], float(moment[i])) for i in np.argsort(-moment)[:top] if moment[i] > 0],
+                 "extending": [(balance.muscles[i], float(moment[i])) for i in np.argsort(moment)[:top] if moment[i] < 0]}
+        if per_newton is not None:
+            step = float(-(row @ np.asarray(per_newton, float)))
+            entry["need_per_newton_m"] = step
+            room = capacity[1] - need if step > 0 else need - capacity[0]
+            entry["load_limit_N"] = float(room / abs(step)) if step and room > 0 else (0.0 if step else None)
+        out.append(entry)
+    return out

@@ -22,7 +22,7 @@ model's own landmarks, trunk_drake.model.myotorso):
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.solvers import Binding, ClarabelSolver, EvaluatorBase, MathematicalProgram
@@ -150,10 +150,12 @@ def _load_lp(balance: MomentBalance, per_newton, min_activation: float, max_acti
     prog = MathematicalProgram()
     a = prog.NewContinuousVariables(n, "a")
     force = prog.NewContinuousVariables(1, "F")
+    d = prog.NewContinuousVariables(balance.deflection.shape[1], "d")
     prog.AddBoundingBoxConstraint(min_activation, max_activation, a)
     prog.AddBoundingBoxConstraint(0.0, FORCE_CAP, force)
-    constraint = prog.AddLinearEqualityConstraint(np.hstack([balance.activation_matrix, per_newton[:, None]]), balance.target,
-                                                  np.concatenate([a, force]))
+    prog.AddBoundingBoxConstraint(-balance.deflection_limit, balance.deflection_limit, d)
+    constraint = prog.AddLinearEqualityConstraint(balance.with_deflection(np.hstack([balance.activation_matrix, per_newton[:, None]])),
+                                                  balance.target, np.concatenate([a, force, d]))
     prog.AddLinearCost(-np.ones(1) if maximise else np.ones(1), force)
     return ClarabelSolver().Solve(prog), force, constraint
 
@@ -268,29 +270,47 @@ def strength(problem: StrengthProblem, sweep: bool = True, step: float = THESIS_
     return result
 
 
-def isometric_strength(model=None, directions=DIRECTIONS, *, q=None, level=("T6", "T7"), shoulder: str = "model",
+def supported_directions(model) -> tuple[str, ...]:
+    """The strength tests `model` can do: lateral bending needs lateral-bending coordinates."""
+    return tuple(d for d in DIRECTIONS if d != "lateral" or any(c.endswith("_LB") for c in model.coordinates))
+
+
+def isometric_strength(model=None, directions=None, *, q=None, level=("T6", "T7"), shoulder: str = "model",
                        sweep: bool = True, step: float = THESIS_STEP, sweep_limit: float = SWEEP_LIMIT,
-                       locked=(), **options) -> dict[str, StrengthResult]:
+                       locked=(), min_activation: float = 0.0, include_passive: bool = True,
+                       **options) -> dict[str, StrengthResult]:
     """Maximal isometric extension, flexion and lateral-bending strength with the pelvis locked.
 
-    `model` defaults to ``load_model("spine3d")`` (pelvis welded); on the sagittal model
-    ``pelvis_tx`` is locked. `options` go to StaticOptimizer (p, min_activation,
-    strength_scale, include_passive, ...); the direct maximum does not depend on p, the sweep
-    and the muscles at their upper bound do. The lateral result carries the acromion variant
-    (shoulder moved to the cited half-breadth) under ``variants`` when `shoulder` is "model".
+    `model` defaults to ``load_model("spine3d")`` (pelvis welded); ``pelvis_tx`` is locked where
+    it exists (sagittal, rhythm). `directions` defaults to those the model supports. The maxima
+    use a lower activation bound of 0 (the thesis' 0.01 floor forces every muscle, antagonists
+    included, to work). `options` go to StaticOptimizer (p, strength_scale, deflection_tolerance,
+    ...); the direct maximum does not depend on p, the sweep and the muscles at their upper bound
+    do. Every result carries the maximum with the other passive-force choice under ``variants``
+    (``without_passive`` or ``with_passive``), and the lateral result the acromion variant
+    (shoulder moved to the cited half-breadth) when `shoulder` is "model".
     """
     from trunk_drake.model.trunk_model import load_model
 
     model = model if model is not None else load_model(dofs="spine3d")
+    directions = supported_directions(model) if directions is None else directions
     locked = list(locked) + (["pelvis_tx"] if "pelvis_tx" in model.coordinates and "pelvis_tx" not in locked else [])
-    optimizer = StaticOptimizer(model, locked=locked, **options)
+    optimizer = StaticOptimizer(model, locked=locked, min_activation=min_activation, include_passive=include_passive, **options)
     q = np.zeros(len(model.coordinates)) if q is None else model.check_q(q)
     balance = optimizer.balance(q)
+    other = replace(balance, passive=np.zeros_like(balance.passive)) if include_passive else \
+        StaticOptimizer(model, locked=locked, min_activation=min_activation, include_passive=True, **options).balance(q)
     optimizer.set_state(q, None, None)
     results = {}
     for direction in directions:
         case = load_case(model, direction, level=level, shoulder=shoulder, context=optimizer.context)
         results[direction] = strength(StrengthProblem(optimizer, case, q, balance), sweep, step, sweep_limit)
+        flipped = StrengthProblem(optimizer, case, q, other)
+        f_other, sens = flipped.maximum()
+        results[direction].variants["without_passive" if include_passive else "with_passive"] = {
+            "load": case.description, "max_force_N": f_other, "limiting_coordinate": _limiting(flipped.coordinates, sens)[0],
+            "include_passive": not include_passive,
+        }
         if direction == "lateral" and shoulder == "model":
             variant = StrengthProblem(optimizer, load_case(model, "lateral", shoulder="acromion", context=optimizer.context), q, balance)
             f_var, sens = variant.maximum()
@@ -300,6 +320,26 @@ def isometric_strength(model=None, directions=DIRECTIONS, *, q=None, level=("T6"
                 "source": "models/reference_values.toml anthropometry.cityu_online.biacromial_breadth_british_men",
             }
     return results
+
+
+DEFLECTION_TOLERANCE_DEG = 2.0  # the tolerated-deflection variant (issue 10): each level within 2 deg of upright
+VARIANTS = {  # name: (configuration, StaticOptimizer options) of the in vivo comparison (README, reproduction Fig. 4.2)
+    "rhythm": ("rhythm", {}),
+    f"independent levels, {DEFLECTION_TOLERANCE_DEG:g} deg deflection": ("spine3d", {"deflection_tolerance": np.radians(DEFLECTION_TOLERANCE_DEG)}),
+    "independent levels, exact": ("spine3d", {}),
+    "independent levels, exact, activation floor 0.01 (thesis)": ("spine3d", {"min_activation": 0.01}),
+}
+
+
+def strength_variants(spec=None, directions=("extension", "flexion"), variants=VARIANTS) -> dict[str, dict[str, StrengthResult]]:
+    """Direct maxima of every variant (with passive force; each result carries the without-passive maximum).
+
+    `spec`: a ModelSpec (default MyoTorso). Returns {variant: {direction: StrengthResult}}.
+    """
+    from trunk_drake.model.trunk_model import load_model
+
+    models = {dofs: load_model(dofs, spec=spec) for dofs in {d for d, _ in variants.values()}}
+    return {name: isometric_strength(models[dofs], directions, sweep=False, **options) for name, (dofs, options) in variants.items()}
 
 
 # ------------------------------------------------------------------------- in vivo
@@ -359,15 +399,29 @@ NOTES = (
 def strength_report(results: dict, model, options: dict) -> dict:
     """JSON-ready report of `isometric_strength` results (a value may be an error message instead)."""
     return {
-        "model": model.spec.name, "dofs": model.dofs, "posture": "upright (q = 0), pelvis locked",
+        "model": model.spec.name, "dofs": model.dofs, "configuration": describe_configuration(model, options),
+        "posture": "upright (q = 0), pelvis locked",
         "options": options,
         "results": {d: r.summary() if isinstance(r, StrengthResult) else {"direction": d, "error": str(r)} for d, r in results.items()},
         "total_time_s": sum(r.time for r in results.values() if isinstance(r, StrengthResult)), "notes": list(NOTES),
     }
 
 
+def describe_configuration(model, options: dict) -> str:
+    """How the levels are held in a strength test, in words."""
+    tolerance = options.get("deflection_tolerance", 0.0) or 0.0
+    if model.coupling is not None:
+        how = f"lumbar rhythm ({model.spec.rhythm.source}): one coordinate, the levels balance together"
+    elif tolerance > 0:
+        how = f"independent levels, each may deflect up to {np.degrees(tolerance):g} deg on its bushing"
+    else:
+        how = "independent levels, each balanced exactly"
+    passive = "with" if options.get("include_passive", True) else "without"
+    return f"{how}; activations in [{options.get('min_activation', 0.0):g}, 1], {passive} passive muscle force"
+
+
 def format_strength(report: dict) -> str:
-    lines = [f"isometric strength, {report['model']} ({report['dofs']}), {report['posture']}"]
+    lines = [f"isometric strength, {report['model']} ({report['dofs']}), {report['posture']}", f"  {report['configuration']}"]
     for d, r in report["results"].items():
         if "error" in r:
             lines.append(f"{d:9s} failed: {r['error']}")
@@ -384,8 +438,9 @@ def format_strength(report: dict) -> str:
         lines.append(f"          load: {r['load']}")
         if r["min_feasible_force_N"] > 1e-6:
             lines.append(f"          the unloaded posture is infeasible: loads below {r['min_feasible_force_N']:.1f} N fail too")
-        for v in r.get("variants", {}).values():
-            lines.append(f"          variant: {v['load']}: {v['max_force_N']:.1f} N, limited at {v['limiting_coordinate']}")
+        for name, v in r.get("variants", {}).items():
+            lines.append(f"          {name.replace('_', ' ')}: {v['max_force_N']:.1f} N, limited at {v['limiting_coordinate']}"
+                         + (f" ({v['load']})" if name == "acromion" else ""))
         for row in r["in_vivo"]:
             ratio = row["ratio_model_to_reference"]
             value = (f"{row['mean_N']} N; model/ref {ratio:.2f}, within 1 SD: {row['within_one_sd']}"

@@ -57,7 +57,7 @@ class SeatCompliance(LeafSystem):
     """Pelvis-seat contact as a spring-damper: the pelvis no longer follows the platform exactly.
 
     Generalized force on the pelvis slide k (x_platform - x_pelvis) + c (v_platform - v_pelvis).
-    Input ``plant_state``; outputs ``generalized_force`` (n_v) and ``platform`` [x, v, a].
+    Input ``plant_state``; output ``generalized_force`` (n_v).
     """
 
     def __init__(self, signal, stiffness: float, damping: float, pelvis_index: int, nq: int, nv: int):
@@ -65,17 +65,13 @@ class SeatCompliance(LeafSystem):
         if stiffness <= 0 or damping < 0:
             raise ValueError(f"seat stiffness must be > 0 and damping >= 0, got {stiffness}, {damping}")
         self._signal, self._k, self._c, self._i, self._nq = signal, float(stiffness), float(damping), pelvis_index, nq
-        self._tau = np.zeros(nv)
+        self._nv = nv
         self.DeclareVectorInputPort("plant_state", nq + nv)
         self.DeclareVectorOutputPort("generalized_force", nv, self._calc_force)
-        self.DeclareVectorOutputPort("platform", 3, self._calc_platform, prerequisites_of_calc={self.time_ticket()})
 
     def _calc_force(self, context, output):
         x = self.get_input_port(0).Eval(context)
         p, v, _ = self._signal.evaluate(context.get_time()) if self._signal is not None else (0.0, 0.0, 0.0)
-        self._tau[self._i] = self._k * (p - x[self._i]) + self._c * (v - x[self._nq + self._i])
-        output.SetFromVector(self._tau)
-
-    def _calc_platform(self, context, output):
-        sig = self._signal.evaluate(context.get_time()) if self._signal is not None else (0.0, 0.0, 0.0)
-        output.SetFromVector(np.asarray(sig, dtype=float))
+        tau = np.zeros(self._nv)
+        tau[self._i] = self._k * (p - x[self._i]) + self._c * (v - x[self._nq + self._i])
+        output.SetFromVector(tau)

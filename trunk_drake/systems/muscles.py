@@ -10,6 +10,7 @@ from trunk_drake.model.paths import PathState
 from trunk_drake.muscle import thelen
 from trunk_drake.muscle.short_range import ShortRangeStiffness
 from trunk_drake.muscle.thelen import MuscleParameters, ThelenConstants
+from trunk_drake.systems.memo import declare_memo
 
 TENDON_MODES = ("rigid", "compliant")
 
@@ -66,9 +67,11 @@ class MuscleSystem(LeafSystem):
             x0 = np.concatenate([x0, np.ones(n)])  # placed at the fiber lengths by steady_state()
         self.DeclareContinuousState(len(x0))
         self._x0 = x0
-        self._kin_path, self._kin = None, None
         self._u = self.DeclareVectorInputPort("excitation", n)
         self._path = self.DeclareAbstractInputPort("path_state", AbstractValue.Make(empty_path_state(model)))
+        self._kin = declare_memo(self, "rigid-tendon fiber kinematics", self._path.Eval,  # the path object: by identity
+                                 lambda c, path: thelen.rigid_kinematics(path.lengths, path.velocities, self.params, self.constants),
+                                 {self._path.ticket()})
         state_and_path = {self.all_state_ticket(), self._path.ticket()}
         template = thelen.rigid_tendon(self._x0[:n], self.params.tendon_slack_length + self.params.optimal_fiber_length, 0.0, self.params, self.constants)
         self._state_port = self.DeclareAbstractOutputPort(
@@ -97,7 +100,7 @@ class MuscleSystem(LeafSystem):
         if self.tendon == "compliant":
             x[n:2 * n] = thelen.equilibrium_fiber_length(activation, path.lengths, self.params, self.constants).fiber_length
         if self.srs is not None:
-            x[-n:] = self._kinematics(path).normalized_fiber_length
+            x[-n:] = thelen.rigid_kinematics(path.lengths, path.velocities, self.params, self.constants).normalized_fiber_length
         return x
 
     def SetDefaultState(self, context, state):  # noqa: N802 (Drake API)
@@ -106,17 +109,11 @@ class MuscleSystem(LeafSystem):
     def muscle_state(self, context) -> thelen.MuscleState:
         return self._state_port.Eval(context)
 
-    def _kinematics(self, path) -> thelen.RigidKinematics:
-        if path is not self._kin_path:  # memo: the fiber kinematics depend only on the path
-            self._kin = thelen.rigid_kinematics(path.lengths, path.velocities, self.params, self.constants)
-            self._kin_path = path
-        return self._kin
-
     def _tendon_force(self, context) -> np.ndarray:
         if self.tendon == "compliant":
             return self.muscle_state(context).tendon_force
         x = context.get_continuous_state_vector().CopyToVector()
-        kin = self._kinematics(self._path.Eval(context))
+        kin = self._kin.Eval(context)
         force = thelen.rigid_tendon_force(x[: self.n], kin, self.params, self.constants) + self._srs_force(x, kin)
         return force if self.mask is None else force * self.mask
 
@@ -133,7 +130,7 @@ class MuscleSystem(LeafSystem):
         x = context.get_continuous_state_vector().CopyToVector()
         path = self._path.Eval(context)
         if self.tendon == "rigid":
-            kin = self._kinematics(path)
+            kin = self._kin.Eval(context)
             value = thelen.rigid_tendon(x[: self.n], path.lengths, path.velocities, self.params, self.constants, kin)
             value.tendon_force = value.tendon_force + self._srs_force(x, kin)
         else:
@@ -145,7 +142,7 @@ class MuscleSystem(LeafSystem):
     def _field(self, name):
         """Fiber kinematics: from the path alone with rigid tendons, else from the full state."""
         if self.tendon == "rigid" and name != "fiber_length":
-            return lambda c, o: o.SetFromVector(getattr(self._kinematics(self._path.Eval(c)), name))
+            return lambda c, o: o.SetFromVector(getattr(self._kin.Eval(c), name))
         return lambda c, o: o.SetFromVector(getattr(self.muscle_state(c), name))
 
     def _calc_generalized_force(self, context, output):
@@ -157,6 +154,6 @@ class MuscleSystem(LeafSystem):
         if self.tendon == "compliant":
             da = np.concatenate([da, self.muscle_state(context).fiber_velocity])
         if self.srs is not None:
-            ln = self._kinematics(self._path.Eval(context)).normalized_fiber_length
+            ln = self._kin.Eval(context).normalized_fiber_length
             da = np.concatenate([da, self.srs.reference_rate(ln, x[-self.n:])])
         derivatives.get_mutable_vector().SetFromVector(da)

@@ -4,41 +4,31 @@ from __future__ import annotations
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import BasicVector, LeafSystem
+from pydrake.systems.framework import LeafSystem
 
 from trunk_drake.model.paths import PathState
+from trunk_drake.systems.memo import declare_memo
 
 
 class MusclePathSystem(LeafSystem):
-    """Input ``plant_state`` [q; v]; outputs ``path_state`` (abstract PathState), ``lengths``, ``velocities``.
+    """Input ``plant_state`` [q; v]; output ``path_state`` (abstract PathState).
 
-    The path kinematics are computed once per context (Drake caches the abstract output)
-    and shared by every consumer.
+    The path kinematics (compiled body kinematics and paths, `TrunkModel.path_state_from_q`)
+    are computed once per plant state and kept in the Context (a memo entry: implicit
+    integrators perturb muscle states with the plant state unchanged), and shared by every consumer.
     """
 
     def __init__(self, model):
         super().__init__()
         self._model = model
         self._nq = model.plant.num_positions()
-        self._scratch = model.plant.CreateDefaultContext()
-        self._last_x, self._last = None, None
-        n_state = self._nq + model.plant.num_velocities()
-        self.DeclareVectorInputPort("plant_state", n_state)
+        self._state = self.DeclareVectorInputPort("plant_state", self._nq + model.plant.num_velocities())
+        self._memo = declare_memo(self, "path kinematics", self._state.Eval, self._compute, {self._state.ticket()})
         empty = PathState(np.zeros(model.n_muscles), np.zeros((model.n_muscles, self._nq)), np.zeros(model.n_muscles))
-        self._path_port = self.DeclareAbstractOutputPort("path_state", lambda: AbstractValue.Make(empty), self._calc_path)
-        self.DeclareVectorOutputPort("lengths", model.n_muscles, lambda c, o: o.SetFromVector(self._path(c).lengths))
-        self.DeclareVectorOutputPort("velocities", model.n_muscles, lambda c, o: o.SetFromVector(self._path(c).velocities))
+        self.DeclareAbstractOutputPort("path_state", lambda: AbstractValue.Make(empty),
+                                       lambda c, o: o.set_value(self._memo.Eval(c)), prerequisites_of_calc={self._memo.ticket()})
 
-    def _path(self, context) -> PathState:
-        return self._path_port.Eval(context)
-
-    def _calc_path(self, context, output):
-        x = self.get_input_port(0).Eval(context)
-        if self._last_x is None or not np.array_equal(x, self._last_x):
-            # memo: implicit integrators perturb muscle states with the plant state unchanged
-            if not np.all(np.isfinite(x)):  # Drake would abort on non-finite positions
-                raise RuntimeError(f"non-finite plant state at t={context.get_time():.6g} s: {x}")
-            self._model.plant.SetPositions(self._scratch, x[: self._nq])
-            self._last = self._model.path_state_from_context(self._scratch, x[self._nq :])
-            self._last_x = x.copy()
-        output.set_value(self._last)
+    def _compute(self, context, x) -> PathState:
+        if not np.isfinite(x.sum()):  # any NaN or inf; Drake would abort on non-finite positions
+            raise RuntimeError(f"non-finite plant state at t={context.get_time():.6g} s: {x}")
+        return self._model.path_state_from_q(x[: self._nq], x[self._nq:])

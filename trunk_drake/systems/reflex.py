@@ -1,9 +1,13 @@
-"""Excitation: feed-forward plus feedback channels, and the thesis' stretch reflex (seed eq. 3.2)."""
+"""Excitation: feed-forward plus feedback channels, and the thesis' stretch reflex (seed eq. 3.2).
+
+The mixer is a small Diagram of Drake's compiled primitives (no Python per evaluation).
+"""
 
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import LeafSystem
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import Adder, Saturation
 
 
 def gains_by_group(model, values: dict[str, float], default: float = 0.0) -> np.ndarray:
@@ -43,6 +47,7 @@ class StretchReflex(LeafSystem):
     Inputs ``normalized_fiber_length`` (l / l_opt) and ``normalized_fiber_velocity``
     (v / (v_max l_opt)); output ``feedback`` (n). ``kp``, ``kv``, ``l_desired`` are per-muscle
     arrays (or scalars). A transport delay is added by the diagram builder on the inputs.
+    (A LeafSystem, not compiled primitives: the stability analysis rescales ``kp`` and ``kv`` in place.)
     """
 
     def __init__(self, n: int, kp, kv, l_desired=1.0):
@@ -61,7 +66,7 @@ class StretchReflex(LeafSystem):
         output.SetFromVector(self.feedback(self._ln.Eval(context), self._vn.Eval(context)))
 
 
-class ExcitationMixer(LeafSystem):
+class ExcitationMixer(Diagram):
     """Excitation u = clip(feed-forward + sum of feedback channels, u_min, 1).
 
     Inputs ``feedforward`` and ``feedback_0`` ... ``feedback_{k-1}`` (n each); output ``excitation``.
@@ -70,12 +75,11 @@ class ExcitationMixer(LeafSystem):
     def __init__(self, n: int, n_feedback: int, min_excitation: float = 0.01):
         super().__init__()
         self.min_excitation = float(min_excitation)
-        self._ff = self.DeclareVectorInputPort("feedforward", n)
-        self._fb = [self.DeclareVectorInputPort(f"feedback_{k}", n) for k in range(n_feedback)]
-        self.DeclareVectorOutputPort("excitation", n, self._calc)
-
-    def _calc(self, context, output):
-        u = self._ff.Eval(context).copy()
-        for port in self._fb:
-            u += port.Eval(context)
-        output.SetFromVector(np.clip(u, self.min_excitation, 1.0))
+        b = DiagramBuilder()
+        total = b.AddNamedSystem("sum", Adder(1 + n_feedback, n))
+        clip = b.AddNamedSystem("clip", Saturation(np.full(n, self.min_excitation), np.ones(n)))
+        b.Connect(total.get_output_port(), clip.get_input_port())
+        for k, name in enumerate(["feedforward", *(f"feedback_{j}" for j in range(n_feedback))]):
+            b.ExportInput(total.get_input_port(k), name)
+        b.ExportOutput(clip.get_output_port(), "excitation")
+        b.BuildInto(self)

@@ -1,0 +1,51 @@
+"""Forward simulation gives the same answer as the accurate reference (trunk_drake.accuracy):
+the default settings' lumbar rotation within 0.01 deg RMS of radau3 at accuracy 1e-6, on a
+trial that folds into flexion and on one that stays upright. Also: a diagram's state lives in
+its Context (a cloned Context continues identically)."""
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+
+import trunk_drake as td
+from trunk_drake.accuracy import REFERENCE_FILE, TOLERANCE_DEG, TRIALS, load_reference, rms_deviation_deg, trial_options
+from trunk_drake.diagram import TrunkOptions, build_trunk_diagram
+from trunk_drake.signals import make_multisine
+from trunk_drake.simulation import simulate
+
+SHORT = 4.0  # s: past the fade-in, where the perturbation is at full amplitude
+
+
+@pytest.fixture(scope="module")
+def sagittal():
+    return td.load_model("sagittal")
+
+
+@pytest.mark.parametrize("trial", TRIALS)
+def test_default_settings_match_the_accurate_reference(sagittal, trial):
+    result = simulate(sagittal, duration=SHORT, **trial_options(sagittal, trial))
+    time, reference = load_reference()
+    moved = np.degrees(np.ptp(reference[trial][time <= SHORT]))
+    assert moved > 1.0, f"the {trial} trial must move the trunk for the check to mean something ({moved:.2f} deg)"
+    deviation = rms_deviation_deg(result, trial)
+    assert deviation <= TOLERANCE_DEG, (f"{trial}: lumbar rotation {deviation:.4f} deg RMS from the reference "
+                                        f"{REFERENCE_FILE.name} (rerun benchmarks/accuracy_reference.py only if the physics changed)")
+
+
+def test_two_simulations_of_one_diagram_interleaved_do_not_interfere(sagittal):
+    """Delay history and cached path kinematics are Context state: two simulators of one diagram
+    (one from a clone of the other's initial Context), advanced in turns, stay identical to each other
+    (with the history on the system object they would write into each other's)."""
+    options = TrunkOptions(kp=0.3, kv=0.2, reflex_delay=0.03, stiffness=300.0, feedforward=np.full(210, 0.03))
+    diagram = build_trunk_diagram(sagittal, options, make_multisine(f_max=1.0, seed=5)).diagram
+    first = Simulator(diagram)
+    second = Simulator(diagram, first.get_context().Clone())
+    for simulator in (first, second):
+        simulator.get_mutable_integrator().set_maximum_step_size(0.01)
+        simulator.Initialize()
+    for t in np.arange(0.1, 2.6, 0.1):
+        first.AdvanceTo(t)
+        second.AdvanceTo(t)
+    states = [s.get_context().get_continuous_state_vector().CopyToVector() for s in (first, second)]
+    assert np.abs(states[0][:5]).max() > 1e-3, "the trunk must move"
+    np.testing.assert_array_equal(states[1], states[0])

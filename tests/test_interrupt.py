@@ -1,0 +1,114 @@
+"""Ctrl-C (issue 12 item 4): every long command stops at once with one line, naming the partial
+results where there are any, without worker tracebacks and without leftover worker processes."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+REFERENCE = ROOT / "models" / "reference"
+EXIT_BOUND_S = 5.0  # the promise is 2 s; the bound leaves room for a loaded test machine
+
+
+class Running:
+    """A `trunk-drake` command in its own process group (as a terminal runs it), its output collected."""
+
+    def __init__(self, args, cwd):
+        self.proc = subprocess.Popen([sys.executable, "-m", "trunk_drake.cli", *args], cwd=cwd, stdout=subprocess.PIPE,
+                                     stderr=subprocess.STDOUT, start_new_session=True,
+                                     preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+        self.output = b""
+        self.reader = threading.Thread(target=self._read, daemon=True)
+        self.reader.start()
+
+    def _read(self):
+        while chunk := os.read(self.proc.stdout.fileno(), 4096):
+            self.output += chunk
+
+    @property
+    def text(self) -> str:
+        return self.output.decode(errors="replace")
+
+    def wait_for(self, needle: str, timeout: float = 180.0) -> None:
+        deadline = time.time() + timeout
+        while needle not in self.text:
+            assert self.proc.poll() is None, f"ended before {needle!r}:\n{self.text}"
+            assert time.time() < deadline, f"no {needle!r} within {timeout} s:\n{self.text}"
+            time.sleep(0.05)
+
+    def interrupt(self) -> float:
+        """Ctrl-C to the whole process group; returns the seconds until the command exited."""
+        start = time.perf_counter()
+        os.killpg(self.proc.pid, signal.SIGINT)
+        self.proc.wait(timeout=60)
+        elapsed = time.perf_counter() - start
+        self.reader.join(timeout=5)
+        return elapsed
+
+    def group_is_gone(self) -> bool:
+        for _ in range(40):  # orphaned workers are reaped by init within moments
+            try:
+                os.killpg(self.proc.pid, 0)
+            except ProcessLookupError:
+                return True
+            time.sleep(0.05)
+        return False
+
+
+def _check(run: Running, elapsed: float, last_line: str) -> None:
+    lines = [line for line in run.text.replace("\r", "\n").splitlines() if line.strip()]
+    print(f"stopped {elapsed:.2f} s after SIGINT")  # shown with pytest -s
+    assert run.proc.returncode == 130, run.text
+    assert elapsed < EXIT_BOUND_S, f"took {elapsed:.1f} s to stop"
+    assert "Traceback" not in run.text and "KeyboardInterrupt" not in run.text, run.text
+    assert lines[-1] == last_line, run.text
+    assert run.group_is_gone(), "worker processes outlived the command"
+
+
+def test_simulate_stops_with_one_line(tmp_path):
+    run = Running(["simulate", "--duration", "60", "--progress", "--out", str(tmp_path / "sim")], tmp_path)
+    run.wait_for("1.0/60.0 s")
+    time.sleep(1.0)
+    _check(run, run.interrupt(), "interrupted")
+
+
+def test_fit_shows_progress_from_the_start_and_stops(tmp_path):
+    run = Running(["fit", str(REFERENCE / "trial_1hz_a.csv"), "--conditions", str(REFERENCE / "conditions.toml"),
+                   "--out", str(tmp_path / "fit")], tmp_path)
+    run.wait_for("fitting 14 gains")  # before the first simulation ends
+    run.wait_for("Jacobian")  # the workers are busy with the first Jacobian
+    time.sleep(1.0)
+    _check(run, run.interrupt(), "interrupted")
+
+
+def test_diagnose_stops_without_worker_tracebacks(tmp_path):
+    run = Running([
+        "diagnose", str(REFERENCE / "trial_1hz_a.csv"), str(REFERENCE / "trial_1hz_b.csv"), "--out", str(tmp_path / "gap")], tmp_path)
+    run.wait_for("simulating the nominal model")
+    time.sleep(2.0)
+    _check(run, run.interrupt(), "interrupted")
+
+
+@pytest.mark.parametrize("command", ["reproduce", "strength-batch"])
+def test_resumable_commands_name_their_partial_results(command, tmp_path):
+    out = tmp_path / "out"
+    if command == "reproduce":
+        args = ["reproduce", "--quick", "--only", "strength_fig4_2", "bushing_sweeps_fig4_5", "--out", str(out)]
+        ready = "bushing_sweeps_fig4_5: Intervertebral"
+    else:
+        grid = tmp_path / "grid.toml"
+        grid.write_text('[defaults]\nsweep = true\n[grid]\ndirection = ["extension", "lateral"]\n'
+                        "strength_scale = [1.0, 1.1, 1.2, 1.3, 1.4, 1.5, 1.6, 1.7]\n")
+        args = ["strength-batch", str(grid), "--workers", "2", "--out", str(out)]
+        ready = "| 1/16 ["
+    run = Running(args, tmp_path)
+    run.wait_for(ready)
+    _check(run, run.interrupt(), f"interrupted; partial results in {out}; rerun the same command to resume")

@@ -1,0 +1,61 @@
+"""The one worker pool: models rebuilt in the workers, results in order, errors and Ctrl-C."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+import pytest
+
+from trunk_drake.model.trunk_model import load_model
+from trunk_drake.parallel import WorkerPool
+
+
+@pytest.fixture(scope="module")
+def sagittal():
+    return load_model("sagittal")
+
+
+def _lengths(model, q):
+    return os.getpid(), model.muscle_lengths(np.asarray(q))
+
+
+def _fails(model, job):
+    raise ValueError(f"job {job} failed")
+
+
+def _sleeps(model, seconds):
+    time.sleep(seconds)
+    return os.getpid()
+
+
+def test_workers_rebuild_the_model_and_keep_the_order(sagittal):
+    poses = [np.full(len(sagittal.coordinates), 0.01 * k) * (np.arange(len(sagittal.coordinates)) > 0) for k in range(6)]
+    with WorkerPool(sagittal, workers=2) as pool:
+        results = pool.map(_lengths, poses)
+    assert {pid for pid, _ in results} - {os.getpid()}, "the jobs ran in worker processes"
+    for q, (_, lengths) in zip(poses, results):
+        assert np.allclose(lengths, sagittal.muscle_lengths(q), rtol=0, atol=1e-12)
+    with WorkerPool(sagittal, workers=1) as pool:  # in this process, on the caller's model
+        assert {pid for pid, _ in pool.map(_lengths, poses[:2])} == {os.getpid()}
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_job_error_reaches_the_caller(sagittal, workers):
+    with WorkerPool(sagittal, workers=workers) as pool:
+        outcomes = sorted(pool.completed(_fails, [1, 2]), key=lambda o: o[0])
+        assert [str(error) for _, _, error in outcomes] == ["job 1 failed", "job 2 failed"]
+        with pytest.raises(ValueError, match="job 1 failed"):
+            pool.map(_fails, [1])
+
+
+def test_leaving_the_pool_by_an_exception_ends_running_jobs_at_once(sagittal):
+    start = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        with WorkerPool(sagittal, workers=2) as pool:
+            for _ in pool.completed(_sleeps, [0.1, 60.0]):
+                processes = list(pool._executor._processes.values())
+                raise KeyboardInterrupt  # as a Ctrl-C in the parent would
+    assert time.perf_counter() - start < 30.0  # model builds included; the 60 s job did not run out
+    assert not any(p.is_alive() for p in processes)

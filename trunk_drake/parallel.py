@@ -1,0 +1,175 @@
+"""The one worker pool: jobs on local processes or a Dask cluster, the model rebuilt once per worker.
+
+Drake objects cannot be pickled, so a worker receives the model's recipe (`ModelRecipe`: spec
+and `load_model` options) and builds the model once; a job is a module-level function
+``fn(model, job)`` with a picklable job and result. With one worker (and no cluster) the jobs run
+in this process on the caller's model.
+
+Ctrl-C is the parent's business: local workers ignore SIGINT (a terminal sends it to the whole
+process group), and a pool left by an exception (KeyboardInterrupt included) terminates its
+workers at once instead of letting them finish their jobs.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import multiprocessing
+import pickle
+import signal
+import threading
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
+
+_MODELS: dict = {}  # per worker process: recipe key -> TrunkModel
+_LOCK = threading.Lock()  # threads of one worker (Dask processes=False) run jobs one at a time
+
+
+class WorkerLost(RuntimeError):
+    """A worker died while running a job (out of memory, a crash in native code)."""
+
+
+@dataclass(frozen=True)
+class ModelRecipe:
+    """What a worker needs to rebuild a TrunkModel: its spec and `load_options`."""
+
+    spec: object
+    options: dict
+    key: str  # hash of both: workers cache their models by it
+
+    @classmethod
+    def of(cls, model) -> "ModelRecipe":
+        parts = (model.spec, model.load_options)
+        return cls(*parts, hashlib.sha256(pickle.dumps(parts)).hexdigest()[:16])
+
+    def build(self):
+        from trunk_drake.model.trunk_model import load_model
+
+        return load_model(spec=self.spec, **self.options)
+
+
+def worker_model(recipe: ModelRecipe):
+    """The model of `recipe`, built once per worker process."""
+    key = recipe.key
+    if key not in _MODELS:
+        _MODELS[key] = recipe.build()
+    return _MODELS[key]
+
+
+def _init_local(recipe: ModelRecipe) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    worker_model(recipe)
+
+
+def _run(fn, recipe: ModelRecipe, job):
+    with _LOCK:  # pybind11, under pydrake, is not thread-safe everywhere
+        return fn(worker_model(recipe), job)
+
+
+class WorkerPool:
+    """Runs ``fn(model, job)`` for many jobs: in this process (workers <= 1), on `workers` local
+    processes, or on the Dask cluster at `cluster` (e.g. "tcp://host:8786"). Use as a context
+    manager; the workers start on the first job."""
+
+    def __init__(self, model, workers: int = 2, cluster: str | None = None):
+        self.model, self.workers, self.cluster = model, workers, cluster
+        self.recipe = ModelRecipe.of(model)
+        self._executor = self._client = self._recipe_future = None
+
+    @property
+    def parallel(self) -> bool:
+        return bool(self.cluster) or self.workers > 1
+
+    def __enter__(self) -> "WorkerPool":
+        return self
+
+    def __exit__(self, kind, error, tb) -> None:
+        self.close(terminate=kind is not None)
+        if kind is not None and issubclass(kind, KeyboardInterrupt):  # Ctrl-C: no child process may outlive us
+            for process in multiprocessing.active_children():
+                process.terminate()
+                process.join(timeout=2.0)
+
+    def map(self, fn, jobs) -> list:
+        """Results of all jobs, in order; a worker's exception is raised here."""
+        jobs = list(jobs)
+        results = [None] * len(jobs)
+        for i, result, error in self.completed(fn, jobs):
+            if error is not None:
+                raise error
+            results[i] = result
+        return results
+
+    def completed(self, fn, jobs):
+        """Yields (index, result, None) as jobs finish, or (index, None, error) for a job that
+        raised (on Dask also for a job whose worker died); a broken local pool raises `WorkerLost`."""
+        jobs = list(jobs)
+        if not self.parallel:
+            for i, job in enumerate(jobs):
+                try:
+                    result = fn(self.model, job)
+                except Exception as err:  # noqa: BLE001 - as from a worker
+                    yield i, None, err
+                else:
+                    yield i, result, None
+        elif self.cluster:
+            yield from self._dask(fn, jobs)
+        else:
+            yield from self._local(fn, jobs)
+
+    def _local(self, fn, jobs):
+        if self._executor is None:
+            self._executor = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("fork"),
+                                                 initializer=_init_local, initargs=(self.recipe,))
+        key = self.recipe.key
+        # SIGINT is blocked while the workers are forked: a Ctrl-C then waits for this process
+        # (not lost), and the workers, which inherit the mask, ignore it before unblocking it
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            futures = {self._executor.submit(_run_local, fn, key, job): i for i, job in enumerate(jobs)}
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        pending = set(futures)
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for future in done:
+                try:
+                    yield futures[future], future.result(), None
+                except BrokenProcessPool as err:
+                    raise WorkerLost("a worker process died (out of memory or a crash in native code)") from err
+                except Exception as err:  # noqa: BLE001 - the job's own error goes to the caller
+                    yield futures[future], None, err
+
+    def _dask(self, fn, jobs):
+        from dask.distributed import Client, as_completed
+
+        if self._client is None:
+            self._client = Client(self.cluster)
+            self._recipe_future = self._client.scatter(self.recipe, broadcast=True)
+        futures = self._client.map(_run, [fn] * len(jobs), [self._recipe_future] * len(jobs), jobs, pure=False)
+        index = {f.key: i for i, f in enumerate(futures)}
+        for future in as_completed(futures):
+            try:
+                yield index[future.key], future.result(), None
+            except Exception as err:  # noqa: BLE001 - the job's error, or the worker running it died
+                yield index[future.key], None, err
+
+    def close(self, terminate: bool = False) -> None:
+        """Stop the workers; `terminate` kills running jobs instead of waiting for them."""
+        if self._executor is not None:
+            processes = list((self._executor._processes or {}).values())
+            self._executor.shutdown(wait=not terminate, cancel_futures=True)
+            if terminate:
+                for process in processes:
+                    process.terminate()
+                for process in processes:
+                    process.join(timeout=2.0)
+            self._executor = None
+        if self._client is not None:
+            self._client.close()
+            self._client = None
+
+
+def _run_local(fn, key, job):
+    return fn(_MODELS[key], job)
