@@ -20,7 +20,6 @@ from pathlib import Path
 
 import numpy as np
 
-from trunk_drake.data import models_dir
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.gap.catalogue import effect
 from trunk_drake.gap.diagnose import diagnose_gap
@@ -28,6 +27,7 @@ from trunk_drake.gap.report import write_diagnosis
 from trunk_drake.gap.synthetic import add_noise, clean_trials, signature_chi2
 from trunk_drake.metadata import json_default
 from trunk_drake.parallel import WorkerPool
+from trunk_drake.thesis import reference_truth_options, truth_gains
 
 DEFAULT_NOISE_DEG = 0.1  # motion-capture angle noise (modelling choice: ~0.2 mm marker noise over a few cm)
 GAIN_SPREAD = 0.2  # SD of log(gain factor) of the perturbed nominal gains
@@ -48,14 +48,7 @@ def truth_configuration():
 def nominal_options() -> TrunkOptions:
     """The reference data set's conditions and truth reflex gains (models/reference): the
     nominal model of every benchmark case, before its gains are perturbed."""
-    import tomllib
-
-    from trunk_drake.io.experiment import load_experiment
-
-    ref = models_dir() / "reference"
-    conditions = load_experiment([ref / "trial_1hz_a.csv"], ref / "conditions.toml").options
-    gains = tomllib.loads((ref / "truth.toml").read_text())
-    return TrunkOptions(**conditions, kp=dict(gains["kp"]), kv=dict(gains["kv"]))
+    return TrunkOptions(**reference_truth_options(), **truth_gains())
 
 
 # mechanisms that are NOT candidates of the catalogue: what the diagnosis has never heard of
