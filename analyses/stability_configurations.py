@@ -1,11 +1,12 @@
 """Stability of the upright posture for the configurations the README and the thesis use.
 
-Runs `td.stability` (static Hessian, closed-loop roots, critical values) for: the README's main
-job, which is also the thesis' final model (k = 125 Nm/rad, c = 7.5 Nms/rad, co-activation 0.020,
-Table 4.3 gains, l_d = 1); the same with reflexes off (Fig. 4.13's "intrinsic only"), with the
-set point at the neutral fiber length, with short-range stiffness, with the Table 4.2 (settling)
-gains; and the synthetic reference data's truth configuration, with and without a 30 ms reflex
-delay. Writes docs/stability/summary.json and summary.md and the main job's plots.
+Runs `td.stability` (static Hessian, closed-loop roots, critical values) for: the default passenger
+(models/presets/default.toml, the README's main job), with a 50 ms reflex delay, with its gains at
+the thesis' scale (x1), and with reflexes off; the thesis' final model (`--preset thesis`: independent
+levels, k = 125 Nm/rad, c = 7.5 Nms/rad, co-activation 0.020, Table 4.3 gains, l_d = 1), the same with
+reflexes off (Fig. 4.13's "intrinsic only"), with the neutral set point, with short-range stiffness and
+with the Table 4.2 (settling) gains; and the synthetic reference data's truth configuration. Writes
+docs/stability/summary.json and summary.md and the default passenger's plots.
 
     python analyses/stability_configurations.py [--out docs/stability]
 """
@@ -16,31 +17,38 @@ import json
 import warnings
 from pathlib import Path
 
-import trunk_drake as td
 from trunk_drake import thesis
-from trunk_drake.diagram import TrunkOptions
+from trunk_drake.data import models_dir
+from trunk_drake.io.experiment import load_experiment
 from trunk_drake.metadata import json_default
 from trunk_drake.muscle.short_range import ShortRangeStiffness
 from trunk_drake.optim.stability import DELAY_RANGE, stability
 from trunk_drake.plots import plot_stability
+from trunk_drake.presets import load_preset
 
 
-def configurations(model) -> dict[str, TrunkOptions]:
+def configurations() -> dict[str, tuple]:
+    """{name: (model, TrunkOptions)}."""
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        final, _ = thesis.thesis_final_options(model)
-        truth = thesis.reference_truth_options()
-    main = TrunkOptions(**final, **thesis.thesis_gains())
-    truth_options = TrunkOptions(**{k: v for k, v in truth.items() if k in {f.name for f in dataclasses.fields(TrunkOptions)}},
-                                 **thesis.truth_gains())
+        warnings.simplefilter("ignore")  # the thesis' co-activation leaves residual moments (its row says so)
+        default, final = load_preset("default"), load_preset("thesis")
+        passenger, sagittal = default.model(), final.model()
+        ours, main = default.options(passenger), final.options(sagittal)
+        reference = models_dir() / "reference"
+        experiment = load_experiment([reference / "trial_1hz_a.csv"], reference / "conditions.toml")
+        truth_model = experiment.model()
+        truth = final.options(truth_model, **experiment.options, **thesis.truth_gains())
     return {
-        "README main job = thesis final model (k 125, co-activation 0.020, Table 4.3 gains, l_d 1)": main,
-        "... reflexes off (intrinsic only, Fig. 4.13)": dataclasses.replace(main, kp=0.0, kv=0.0),
-        "... set point at the neutral fiber length (l_d = neutral)": dataclasses.replace(main, l_desired="neutral"),
-        "... with short-range stiffness": dataclasses.replace(main, srs=ShortRangeStiffness.from_reference()),
-        "... Table 4.2 (settling) gains": dataclasses.replace(main, **thesis.thesis_gains("trunk_settling")),
-        "synthetic-data truth (k 300, c 6, co-activation 0.03, truth gains)": truth_options,
-        "... with a 30 ms reflex delay": dataclasses.replace(truth_options, reflex_delay=0.03),
+        "default passenger (README main job; rhythm, arms, Table 4.3 gains x9, l_d neutral)": (passenger, ours),
+        "... with a 50 ms reflex delay": (passenger, dataclasses.replace(ours, reflex_delay=0.05)),
+        "... gains at the thesis' scale (x1)": (passenger, default.with_changes(gain_scale=1.0).options(passenger)),
+        "... reflexes off": (passenger, dataclasses.replace(ours, kp=0.0, kv=0.0)),
+        "thesis final model (--preset thesis: independent levels, k 125, co-activation 0.020, Table 4.3 gains, l_d 1)": (sagittal, main),
+        "... reflexes off (intrinsic only, Fig. 4.13)": (sagittal, dataclasses.replace(main, kp=0.0, kv=0.0)),
+        "... set point at the neutral fiber length (l_d = neutral)": (sagittal, dataclasses.replace(main, l_desired="neutral")),
+        "... with short-range stiffness": (sagittal, dataclasses.replace(main, srs=ShortRangeStiffness.from_reference())),
+        "... Table 4.2 (settling) gains": (sagittal, dataclasses.replace(main, **thesis.thesis_gains("trunk_settling"))),
+        "synthetic-data truth (models/reference)": (truth_model, truth),
     }
 
 
@@ -60,9 +68,8 @@ def main():
     parser.add_argument("--out", default="docs/stability")
     out = Path(parser.parse_args().out)
     out.mkdir(parents=True, exist_ok=True)
-    model = td.load_model("sagittal")
     results, lines = {}, []
-    for k, (name, options) in enumerate(configurations(model).items()):
+    for k, (name, (model, options)) in enumerate(configurations().items()):
         result = stability(model, options)
         results[name] = result.summary()
         lines.append(row(name, results[name]))

@@ -9,15 +9,15 @@ Usage: python benchmarks/accuracy_reference.py
 import json
 import subprocess
 
-import trunk_drake as td
-from trunk_drake.accuracy import DURATION, REFERENCE_ACCURACY, REFERENCE_FILE, TRIALS, trial_options
+from trunk_drake.accuracy import DURATION, REFERENCE_ACCURACY, REFERENCE_FILE, TRIALS, trial_model, trial_options
 from trunk_drake.io.storage import write_csv
 from trunk_drake.simulation import simulate
 
 
 def main():
-    model = td.load_model("sagittal")
-    results = {name: simulate(model, duration=DURATION, accuracy=REFERENCE_ACCURACY, **trial_options(model, name)) for name in TRIALS}
+    models = {name: trial_model(name) for name in TRIALS}
+    results = {name: simulate(models[name], duration=DURATION, accuracy=REFERENCE_ACCURACY, **trial_options(models[name], name))
+               for name in TRIALS}
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
     time = results[TRIALS[0]].time
     REFERENCE_FILE.parent.mkdir(parents=True, exist_ok=True)

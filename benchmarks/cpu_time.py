@@ -17,7 +17,7 @@ from trunk_drake.simulation import simulate
 
 def main():
     model = td.load_model("sagittal")
-    options = trial_options(model, "folding")
+    options = trial_options(model, "thesis")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         simulate(model, duration=0.3, **options)  # warm-up: numba cache loading

@@ -27,7 +27,7 @@ def measured_run(duration: float, spec_file: str) -> dict:
 
     with open(spec_file, "rb") as f:
         model = td.load_model("sagittal", spec=pickle.load(f))
-    options = trial_options(model, "folding")
+    options = trial_options(model, "thesis")
     warm = dict(options)
     signal = _perturbation("multisine", warm.pop("bandwidth"), warm.pop("seed"))
     diagram = build_trunk_diagram(model, TrunkOptions(**warm), signal).diagram

@@ -19,8 +19,7 @@ import time
 import mujoco
 import numpy as np
 
-import trunk_drake as td
-from trunk_drake.accuracy import TOLERANCE_DEG, rms_deviation_deg, trial_options
+from trunk_drake.accuracy import TOLERANCE_DEG, rms_deviation_deg, trial_model, trial_options
 from trunk_drake.diagram import TrunkOptions, build_trunk_diagram
 from trunk_drake.model.myotorso import compile_myotorso
 from trunk_drake.simulation import _perturbation, simulate
@@ -36,13 +35,14 @@ def trunk_drake_run(model, duration, trial, **overrides):
 
 def evaluation_us(model, trial, repetitions=2000):
     """Microseconds of one derivative evaluation of the whole diagram (q changed every time), minimum of 5 runs."""
-    options = trial_options(model, "folding")
+    options = trial_options(model, trial)
     signal = _perturbation("multisine", options.pop("bandwidth"), options.pop("seed"))
     diagram = build_trunk_diagram(model, TrunkOptions(**options), signal).diagram
     context = diagram.CreateDefaultContext()
     context.SetTime(3.0)
     x = context.get_continuous_state_vector().CopyToVector()
-    x[:5], x[10:] = 0.01, 0.03
+    nq = model.plant.num_positions()
+    x[:nq], x[2 * nq:] = 0.01, 0.03  # a displaced posture, muscles above rest
     derivatives = diagram.AllocateTimeDerivatives()
     best = np.inf
     for _ in range(5):
@@ -73,28 +73,28 @@ def main():
     parser.add_argument("--duration", type=float, default=20.0)
     parser.add_argument("--compliant-duration", type=float, default=4.0)
     args = parser.parse_args()
-    model = td.load_model("sagittal")
+    model, thesis = trial_model("default"), trial_model("thesis")
     load_before = os.getloadavg()
-    trunk_drake_run(model, 0.5, "folding")  # warm-up: numba compilation, caches
+    trunk_drake_run(model, 0.5, "default")  # warm-up: numba compilation, caches
     mujoco_before = mujoco_run(args.duration)
     runs = {
-        "rigid": trunk_drake_run(model, args.duration, "folding"),
-        "upright": trunk_drake_run(model, args.duration, "upright"),
-        "compliant": trunk_drake_run(model, args.compliant_duration, "folding", tendon="compliant"),
+        "rigid": trunk_drake_run(model, args.duration, "default"),
+        "thesis": trunk_drake_run(thesis, args.duration, "thesis"),
+        "compliant": trunk_drake_run(model, args.compliant_duration, "default", tendon="compliant"),
     }
     mujoco_after = mujoco_run(args.duration)
     mujoco_rtf = 0.5 * (mujoco_before["real_time_factor"] + mujoco_after["real_time_factor"])
-    for name in ("rigid", "upright"):
+    for name in ("rigid", "thesis"):
         runs[name]["ratio_to_mujoco"] = runs[name]["real_time_factor"] / mujoco_rtf
     runs["compliant"].pop("rms_deviation_deg")  # the reference is the rigid-tendon model's
     out = {
         "machine": platform.machine(),
         "load_average_1_5_15_min": {"before": load_before, "after": os.getloadavg()},
-        "trials": {"rigid": "README main job: thesis gains, co-activation 0.02, 125 Nm/rad (folds into flexion)",
-                   "upright": "synthetic reference truth configuration (models/reference), seed 11",
+        "trials": {"rigid": "README main job: the default passenger (models/presets/default.toml, rhythm), upright",
+                   "thesis": "the thesis' final model (--preset thesis, independent levels), folds into flexion",
                    "compliant": "the main job with compliant tendons"},
         **runs,
-        "evaluation_us": evaluation_us(model, "folding"),
+        "evaluation_us": {"default": evaluation_us(model, "default"), "thesis": evaluation_us(thesis, "thesis")},
         "mujoco_myotorso": {"before": mujoco_before, "after": mujoco_after, "mean_real_time_factor": mujoco_rtf},
         "targets": {"rigid_ratio_to_mujoco": 0.5, "compliant_real_time_factor": 3.0, "rms_deviation_deg": TOLERANCE_DEG},
     }

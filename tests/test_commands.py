@@ -133,7 +133,7 @@ def test_strength_batch_bad_grids_and_failed_cases(tmp_path, capsys):
 
 
 def test_a_diverging_simulation_is_one_error_line(tmp_path, capsys):
-    assert main(["simulate", "--duration", "3", "--stiffness", "0", "--damping", "0", "--no-reflex", "--coactivation", "0.01",
+    assert main(["simulate", "--preset", "thesis", "--duration", "3", "--stiffness", "0", "--damping", "0", "--no-reflex", "--coactivation", "0.01",
                  "--out", str(tmp_path)]) == 1
     captured = capsys.readouterr()
     errors = [line for line in captured.err.splitlines() if line.startswith("trunk-drake")]
@@ -141,7 +141,7 @@ def test_a_diverging_simulation_is_one_error_line(tmp_path, capsys):
 
 
 def test_warnings_are_one_plain_line_and_summary_arrays_are_arrays(tmp_path, capsys):
-    assert main(["simulate", "--duration", "0.3", "--coactivation", "0.02", "--out", str(tmp_path)]) == 0
+    assert main(["simulate", "--preset", "thesis", "--duration", "0.3", "--out", str(tmp_path)]) == 0  # its co-activation warns
     err = capsys.readouterr().err
     lines = [line for line in err.splitlines() if line.strip()]
     assert lines and all(line.startswith("warning: ") for line in lines), err  # no "UserWarning", no source line

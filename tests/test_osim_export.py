@@ -16,7 +16,7 @@ from trunk_drake.io.storage import read_table
 def test_simulate_with_osim_model_writes_a_motion_opensim_reads(lumbar_c210_path, tmp_path):
     osim = pytest.importorskip("opensim")
     out = tmp_path / "sim"
-    assert main(["simulate", "--model", str(lumbar_c210_path), "--duration", "0.4", "--out", str(out)]) == 0
+    assert main(["simulate", "--model", str(lumbar_c210_path), "--dofs", "sagittal", "--duration", "0.4", "--out", str(out)]) == 0
     model = td.load_model(lumbar_c210_path, dofs="sagittal")
     kinematics = read_table(out / "kinematics.csv")  # trunk-drake's names and signs (states.sto has the .osim's)
     q = np.column_stack([kinematics.column(f"{c}_{'m' if c == 'pelvis_tx' else 'rad'}") for c in model.coordinates])

@@ -262,3 +262,16 @@ def test_short_range_stiffness_is_a_force_on_quick_stretch_that_fades():
     assert large - rest == pytest.approx(per_stretch * srs.max_stretch, rel=1e-9)  # detached beyond max_stretch
     assert rate == pytest.approx(0.5 * srs.max_stretch / srs.time_constant, rel=1e-9)  # the reference follows
     assert ShortRangeStiffness.from_reference() == srs  # the defaults are the cited constants
+
+
+def test_critical_value_gives_the_stable_interval_around_the_current_value():
+    """Stable only for 2 < x < 5: from a stable current value both bounds; from an unstable one the
+    first stable interval above the range's lower end."""
+    window = lambda x: (x - 2.0) * (x - 5.0)  # noqa: E731  (negative = stable inside the window)
+    around = critical_value("x", window, 0.5, 20.0, current=3.0, rtol=1e-4)
+    assert around.value == pytest.approx(2.0, rel=1e-3) and around.upper == pytest.approx(5.0, rel=1e-3)
+    assert around.summary()["text"].startswith("x in [2")
+    scanned = critical_value("x", window, 0.5, 20.0, current=10.0, rtol=1e-4)
+    assert scanned.value == pytest.approx(2.0, rel=1e-3) and scanned.upper == pytest.approx(5.0, rel=1e-3)
+    open_ended = critical_value("x", lambda x: 1.0 - x, 0.1, 5.0, rtol=1e-4)
+    assert open_ended.value == pytest.approx(1.0, rel=1e-3) and open_ended.upper is None

@@ -2,15 +2,15 @@
 
 A faster simulation must give the same answer: the lumbar rotation of the default settings
 within 0.01 deg RMS of an accurate reference (radau3 at accuracy 1e-6). Two 20 s, 0.2-1 Hz
-trials are checked: ``"folding"``, the README's main job (thesis gains, co-activation at
-minimum activation 0.02, 125 Nm/rad), which folds into flexion on MyoTorso, and
-``"upright"``, the synthetic reference data's truth configuration (models/reference), which
-stays upright. The reference is stored in `REFERENCE_FILE` by
-``benchmarks/accuracy_reference.py``; rerun it when the model's physics change.
+trials (multisine seed 0) are checked, one per preset (models/presets/): ``"default"``, the
+README's main job (the default passenger on the rhythm, which stays upright), and ``"thesis"``,
+the thesis' final model on independent levels, which folds into flexion. The reference is stored in
+`REFERENCE_FILE` by ``benchmarks/accuracy_reference.py``; rerun it when the model's physics change.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from pathlib import Path
 
@@ -20,25 +20,31 @@ REFERENCE_ACCURACY = 1e-6
 TOLERANCE_DEG = 0.01  # RMS lumbar rotation difference allowed
 DURATION = 20.0
 REFERENCE_FILE = Path(__file__).resolve().parents[1] / "benchmarks" / "reference" / "accurate_lumbar_rotation.csv"
-TRIALS = ("folding", "upright")
+TRIALS = ("default", "thesis")
+
+
+def trial_model(name: str):
+    """The model of check trial `name` (its preset's)."""
+    from trunk_drake.presets import load_preset
+
+    _check(name)
+    return load_preset(name).model()
 
 
 def trial_options(model, name: str) -> dict:
-    """`simulate` keywords (besides the integrator's) of check trial `name`."""
-    from trunk_drake.data import models_dir
-    from trunk_drake.optim.static import coactivation
-    from trunk_drake.thesis import reference_truth_options, truth_gains
-    from trunk_drake.simulation import DEFAULT_GAINS, load_reflex_gains
+    """`simulate` keywords (besides the integrator's) of check trial `name` on its `trial_model`."""
+    from trunk_drake.presets import load_preset
 
-    if name == "folding":
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # the co-activation's small residual moment is reported elsewhere
-            feedforward = coactivation(model, 0.02)
-        return {"bandwidth": 1.0, "seed": 0, "feedforward": feedforward, "stiffness": 125.0, "damping": 7.5,
-                **load_reflex_gains(models_dir() / DEFAULT_GAINS)}
-    if name == "upright":
-        return {"bandwidth": 1.0, "seed": 11, **reference_truth_options(), **truth_gains()}
-    raise ValueError(f"unknown check trial {name!r}; expected one of {TRIALS}")
+    _check(name)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the thesis preset's co-activation residual is reported elsewhere
+        options = load_preset(name).options(model)
+    return {"bandwidth": 1.0, "seed": 0, **{f.name: getattr(options, f.name) for f in dataclasses.fields(options)}}
+
+
+def _check(name: str) -> None:
+    if name not in TRIALS:
+        raise ValueError(f"unknown check trial {name!r}; expected one of {TRIALS}")
 
 
 def load_reference() -> tuple[np.ndarray, dict[str, np.ndarray]]:

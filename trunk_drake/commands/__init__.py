@@ -7,11 +7,13 @@ parser sets ``func(args) -> exit code``; domain modules expose functions only.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib
 import json
 import pkgutil
 import sys
 import warnings
+from pathlib import Path
 
 from trunk_drake.metadata import json_default
 
@@ -63,44 +65,92 @@ def print_json(data) -> None:
     print(json.dumps(data, indent=2, default=json_default))
 
 
-def add_passenger_arguments(p) -> None:
-    """Options that configure the passenger (reflexes, co-activation, bushings, short-range stiffness),
-    shared by the commands that build a trunk diagram; read them back with `passenger_options`."""
-    from trunk_drake.simulation import DEFAULT_GAINS
+def add_passenger_arguments(p, dofs_choices=("sagittal", "rhythm")) -> None:
+    """`--preset` (the passenger configuration, models/presets/) and options overriding single settings
+    of it, shared by the commands that build a trunk diagram; read them back with `passenger_preset`,
+    `passenger_model` and `passenger_options`."""
+    from trunk_drake.presets import DEFAULT_PRESET
 
-    p.add_argument("--reflex-gains", default=None,
-                   help=f"TOML/JSON with [kp] and [kv] per group (FILE#set picks a set); default: models/{DEFAULT_GAINS}")
+    p.add_argument("--preset", default=DEFAULT_PRESET,
+                   help=f"passenger configuration: a name in models/presets ({', '.join(preset_names())}) or a TOML file; "
+                        f"the options below override single settings of it (default: {DEFAULT_PRESET})")
+    dofs_argument(p, dofs_choices, default=None)
+    p.add_argument("--reflex-gains", default=None, help="TOML/JSON with [kp] and [kv] per group (FILE#set picks a set)")
+    p.add_argument("--gain-scale", type=float, default=None, help="multiplies every reflex gain")
     p.add_argument("--no-reflex", action="store_true", help="switch the stretch reflexes off")
-    p.add_argument("--coactivation", type=float, default=0.02,
-                   help="minimum activation of the feed-forward co-activation (default 0.02, as the thesis)")
-    p.add_argument("--stiffness", type=float, default=125.0, help="bushing stiffness, Nm/rad (thesis final: 125)")
-    p.add_argument("--damping", type=float, default=7.5, help="bushing damping, Nms/rad")
-    p.add_argument("--srs", action="store_true",
+    p.add_argument("--coactivation", type=float, default=None,
+                   help="minimum activation of the feed-forward co-activation (static optimisation at rest)")
+    p.add_argument("--stiffness", type=float, default=None, help="bushing stiffness per lumbar level, Nm/rad")
+    p.add_argument("--damping", type=float, default=None, help="bushing damping per lumbar level, Nms/rad")
+    p.add_argument("--l-desired", default=None, help="reflex set point: a normalised fiber length (e.g. 1) or 'neutral'")
+    p.add_argument("--reflex-delay", type=float, default=None, help="stretch-reflex transport delay, s")
+    p.add_argument("--srs", action=argparse.BooleanOptionalAction, default=None,
                    help="short-range stiffness of active muscle (constants: models/reference_values.toml [muscle.srs])")
 
 
-def passenger_options(args, model) -> dict:
-    """TrunkOptions fields (and simulate() keywords) from the arguments of `add_passenger_arguments`."""
+def preset_names() -> list[str]:
     from trunk_drake.data import models_dir
-    from trunk_drake.muscle.short_range import ShortRangeStiffness
-    from trunk_drake.optim.static import coactivation
-    from trunk_drake.simulation import DEFAULT_GAINS, load_reflex_gains
 
-    gains = {"kp": 0.0, "kv": 0.0} if args.no_reflex else load_reflex_gains(args.reflex_gains or models_dir() / DEFAULT_GAINS)
-    with warnings.catch_warnings(record=True) as caught:  # one plain line each, no source line
+    return sorted(p.stem for p in (models_dir() / "presets").glob("*.toml"))
+
+
+def passenger_preset(args):
+    """The Preset of `--preset` with the single settings given on the command line."""
+    from trunk_drake.presets import load_preset
+
+    changes = {"dofs": args.dofs, "stiffness": args.stiffness, "damping": args.damping, "coactivation": args.coactivation,
+               "gain_scale": args.gain_scale, "reflex_delay": args.reflex_delay, "srs": args.srs,
+               "l_desired": None if args.l_desired is None else _set_point(args.l_desired),
+               "reflex_gains": None if args.reflex_gains is None else _absolute(args.reflex_gains)}
+    changes = {k: v for k, v in changes.items() if v is not None}
+    if args.no_reflex:
+        changes["reflex_gains"] = None
+    preset = load_preset(args.preset)
+    return preset.with_changes(**changes) if changes else preset
+
+
+def passenger_model(args):
+    """The model of the command line's passenger (`--preset`, `--dofs`)."""
+    preset = passenger_preset(args)
+    if getattr(args, "model", None) and args.dofs is None and preset.dofs == "rhythm":
+        raise ValueError(f"preset {preset.name!r} uses the rhythm configuration, which OpenSim models do not have yet: "
+                         "add --dofs sagittal")
+    return preset.model()
+
+
+def passenger_options(args, model) -> dict:
+    """TrunkOptions fields (and simulate() keywords) of the command line's passenger; the optimiser's
+    warnings (residual moments of the co-activation) as one plain line each."""
+    with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        feedforward = coactivation(model, args.coactivation)
+        options = passenger_preset(args).options(model)
     for warning in caught:
         print(f"warning: {warning.message}", file=sys.stderr)
-    return {"feedforward": feedforward, "stiffness": args.stiffness, "damping": args.damping,
-            "srs": ShortRangeStiffness.from_reference() if args.srs else None, **gains}
+    return {f.name: getattr(options, f.name) for f in dataclasses.fields(options)
+            if f.name in ("kp", "kv", "l_desired", "reflex_delay", "feedforward", "stiffness", "damping", "srs")}
+
+
+def _absolute(gains: str) -> str:
+    """A gains file given on the command line (FILE or FILE#set), relative to the working directory."""
+    file, sep, name = gains.partition("#")
+    return str(Path(file).resolve()) + sep + name
+
+
+def _set_point(text: str):
+    if text == "neutral":
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"--l-desired {text!r} is neither a number nor 'neutral'") from None
 
 
 _CONFIGURATIONS = {"sagittal": "five independent lumbar flexion levels", "spine3d": "independent levels in 3-D, pelvis welded",
                    "rhythm": "one lumbar flexion coordinate moving the levels with Lumbar_C_210's rhythm"}
 
 
-def dofs_argument(parser, choices=("sagittal", "rhythm"), default: str = "sagittal") -> None:
-    """`--dofs`: the model configuration a command runs on (trunk_drake.model.plant)."""
+def dofs_argument(parser, choices=("sagittal", "rhythm"), default: str | None = "sagittal") -> None:
+    """`--dofs`: the model configuration a command runs on (trunk_drake.model.plant); default None: the preset's."""
     parser.add_argument("--dofs", choices=choices, default=default,
-                        help="; ".join(f"{c}: {_CONFIGURATIONS[c]}" for c in choices) + f" (default {default})")
+                        help="; ".join(f"{c}: {_CONFIGURATIONS[c]}" for c in choices)
+                             + (f" (default {default})" if default else " (default: the preset's)"))

@@ -16,7 +16,7 @@ def add_command(sub) -> None:
     p.add_argument("--out", required=True, help="output folder (report.md, diagnosis.json, figures)")
     p.add_argument("--conditions", help="TOML with a [conditions] table (default: conditions.toml beside the data)")
     p.add_argument("--gains", help="TOML with [kp] and [kv] per group: the model's reflex gains (e.g. a fit's gains.toml)")
-    dofs_argument(p)
+    dofs_argument(p, default=None)
     p.add_argument("--noise-deg", type=positive, help="angle measurement noise (default: conditions, else estimated)")
     p.add_argument("--candidates", nargs="*", choices=[e.name for e in CATALOGUE], metavar="EFFECT",
                    help=f"candidate effects (default: the whole catalogue: {', '.join(e.name for e in CATALOGUE)})")
@@ -37,7 +37,6 @@ def run(args) -> int:
     from trunk_drake.gap.report import write_diagnosis
     from trunk_drake.io.experiment import load_experiment
     from trunk_drake.io.trials import available_outputs
-    from trunk_drake.model.trunk_model import load_model
     from trunk_drake.simulation import load_reflex_gains
 
     experiment = load_experiment(args.data, args.conditions)
@@ -48,7 +47,7 @@ def run(args) -> int:
     if args.gains:
         options.update(load_reflex_gains(args.gains))
     noise = np.radians(args.noise_deg) if args.noise_deg is not None else experiment.noise_rad
-    model = load_model(args.dofs)
+    model = experiment.model(args.dofs)
     diagnosis = diagnose_gap(model, experiment.trials, TrunkOptions(**options), noise=noise,
                              outputs=available_outputs(experiment.trials),
                              candidates=args.candidates, threshold=args.threshold, refine=args.refine,

@@ -13,7 +13,7 @@ def add_command(sub) -> None:
     p.add_argument("data", nargs="*", help="trial files or folders (e.g. models/reference); none for --scenario settling")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--scenario", choices=sorted(THESIS_START), default="car")
-    dofs_argument(p)
+    dofs_argument(p, default=None)
     p.add_argument("--conditions", help="TOML with a [conditions] table (default: conditions.toml beside the data)")
     p.add_argument("--outputs", choices=["total", "levels", "all"], default="all",
                    help="fit the total lumbar rotation, the five level angles, or all (default; those present in the data)")
@@ -32,19 +32,21 @@ def run(args) -> int:
     from trunk_drake.diagram import TrunkOptions
     from trunk_drake.io.experiment import load_experiment
     from trunk_drake.io.trials import OUTPUT_NAMES, available_outputs
-    from trunk_drake.model.trunk_model import load_model
     from trunk_drake.optim.fit import fit_reflex_gains, settling_target, targets_from_trials, write_fit
     from trunk_drake.optim.static import coactivation
 
-    model = load_model(args.dofs)
     names = {"total": ("lumbar_rotation",), "levels": OUTPUT_NAMES[1:], "all": OUTPUT_NAMES}[args.outputs]
     if args.scenario == "settling":
+        from trunk_drake.model.trunk_model import load_model
+
+        model = load_model(args.dofs or "sagittal")
         targets = [settling_target()]
         options = TrunkOptions(feedforward=coactivation(model, 0.02))
     else:
         if not args.data:
             raise ValueError("the car scenario needs measured trials: trunk-drake fit DATA... --out DIR")
         experiment = load_experiment(args.data, args.conditions)
+        model = experiment.model(args.dofs)
         present = available_outputs(experiment.trials)
         names = tuple(n for n in names if n in present) or names
         noise = experiment.noise_rad if experiment.noise_rad is not None else np.radians(0.1)

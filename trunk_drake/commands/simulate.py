@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from trunk_drake.commands import add_passenger_arguments, dofs_argument, passenger_options, positive, print_json
+from trunk_drake.commands import add_passenger_arguments, passenger_model, passenger_options, positive, print_json
 from trunk_drake.simulation import DEFAULT_ACCURACY
 
 
@@ -29,7 +29,6 @@ def add_command(sub) -> None:
     p.add_argument("--lowpass-hz", type=positive, default=None, help="low-pass the perturbation (the thesis used 2 Hz)")
     add_passenger_arguments(p)
     p.add_argument("--tendon", choices=["rigid", "compliant"], default="rigid")
-    dofs_argument(p)
     p.add_argument("--pelvis", choices=["prescribed", "force"], default="prescribed",
                    help="exact prescribed pelvis motion, or the thesis' 10,000 kg force-driven pelvis")
     p.add_argument("--accuracy", type=accuracy, default=DEFAULT_ACCURACY, help="integrator target accuracy, in (0, 1)")
@@ -42,10 +41,9 @@ def add_command(sub) -> None:
 
 
 def run(args) -> int:
-    from trunk_drake.model.trunk_model import load_model
     from trunk_drake.simulation import simulate
 
-    model = load_model(args.dofs)
+    model = passenger_model(args)
     result = simulate(
         model, duration=args.duration, bandwidth=args.bandwidth, seed=args.seed, lowpass_hz=args.lowpass_hz, tendon=args.tendon,
         pelvis=args.pelvis, accuracy=args.accuracy, progress=args.progress, **passenger_options(args, model),

@@ -2,20 +2,15 @@
 
 from __future__ import annotations
 
-from trunk_drake.commands import add_passenger_arguments, passenger_options, print_json
+from trunk_drake.commands import add_passenger_arguments, passenger_model, passenger_options, print_json
 
 
 def add_command(sub) -> None:
-    from trunk_drake.model.plant import DOFS
-
     p = sub.add_parser("stability", help="static and dynamic stability of the upright posture, and what would stabilise it",
                        description="Energy Hessian (static) and closed-loop characteristic roots (dynamic) of the trunk "
                                    "about its upright posture, the reflexes engaged there, and the smallest co-activation, "
                                    "reflex gain scale and bushing stiffness that make it stable. Same options as simulate.")
-    p.add_argument("--dofs", choices=DOFS, default="sagittal", help="model configuration (spine3d: static analysis only)")
-    add_passenger_arguments(p)
-    p.add_argument("--reflex-delay", type=float, default=0.0, help="stretch-reflex transport delay, s")
-    p.add_argument("--l-desired", default="1", help="reflex set point: a normalised fiber length (default 1) or 'neutral'")
+    add_passenger_arguments(p, ("rhythm", "sagittal", "spine3d"))  # spine3d: static analysis only
     p.add_argument("--no-critical", action="store_true", help="skip the critical co-activation, gain and stiffness")
     p.add_argument("--out", default=None, help="folder for stability.json and the PNG plots")
     p.add_argument("--json", action="store_true", help="print JSON instead of text")
@@ -28,12 +23,10 @@ def run(args) -> int:
 
     from trunk_drake.diagram import TrunkOptions
     from trunk_drake.metadata import json_default
-    from trunk_drake.model.trunk_model import load_model
     from trunk_drake.optim.stability import stability
 
-    l_desired = args.l_desired if args.l_desired == "neutral" else _number(args.l_desired, "--l-desired")
-    model = load_model(args.dofs)
-    options = TrunkOptions(reflex_delay=args.reflex_delay, l_desired=l_desired, **passenger_options(args, model))
+    model = passenger_model(args)
+    options = TrunkOptions(**passenger_options(args, model))
     result = stability(model, options, critical=not args.no_critical)
     summary = result.summary()
     if args.out:
@@ -52,9 +45,3 @@ def run(args) -> int:
             print(f"results in {args.out}")
     return 0
 
-
-def _number(text: str, option: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        raise ValueError(f"{option} {text!r} is neither a number nor 'neutral'") from None

@@ -24,7 +24,19 @@ class Experiment:
     period: float = 20.0
     fade: float = 2.0
     coactivation_min_activation: float | None = None
+    preset: str | None = None  # the passenger preset the data were taken with (models/presets/), if stated
     source: str = ""
+
+    def model(self, dofs: str | None = None):
+        """The model these data need: the preset's passenger and configuration (`dofs` overrides it),
+        or bare MyoTorso in `dofs` (default "sagittal") when the conditions name no preset."""
+        if self.preset is None:
+            from trunk_drake.model.trunk_model import load_model
+
+            return load_model(dofs or "sagittal")
+        from trunk_drake.presets import load_preset
+
+        return load_preset(self.preset).model(dofs)
 
 
 def load_experiment(paths, conditions: str | None = None) -> Experiment:
@@ -72,4 +84,5 @@ def _apply_conditions(experiment: Experiment, path: Path) -> None:
     experiment.period = float(table.get("period_s", experiment.period))
     experiment.fade = float(table.get("fade_s", experiment.fade))
     experiment.coactivation_min_activation = table.get("coactivation_min_activation")
+    experiment.preset = table.get("preset")
     experiment.source += f" (conditions: {path})"

@@ -24,9 +24,10 @@
   agree: that is the rate at which a small perturbation grows or decays in a simulation. Where
   position reflexes sit at their set point (l_d = "neutral") the rate depends on the amplitude and
   the report says so.
-* **Critical values**: the smallest co-activation level, uniform scale of the reflex gains and
-  bushing stiffness (each with the others held) at which that margin turns negative, by a scan from
-  the lower end and bisection, at the posture's rest state; the critical reflex delay when stable.
+* **Critical values**: the interval of co-activation level, uniform scale of the reflex gains and
+  bushing stiffness (each with the others held) over which that margin is negative: around the
+  present value when that is stable, else the first stable interval of a scan from the lower end;
+  bounds by bisection, at the posture's rest state. The critical reflex delay when stable.
 """
 
 from __future__ import annotations
@@ -50,6 +51,7 @@ from trunk_drake.systems.muscles import muscle_parameters
 
 JACOBIAN_STEP = 1e-7
 DISPLACEMENT = 1e-4  # rad (0.006 deg, largest level): how far along a real mode its kinks are resolved
+TRUNK_MODE_FRACTION = 1e-6  # a mode whose coordinates move less than this fraction of its largest state is no trunk mode
 BRANCH_STEP = 1e-9  # finite-difference step there, far below the displaced kink arguments
 BRANCH_ITERATIONS = 4
 EQUILIBRIUM_TOLERANCE = 1e-9  # Nm: Newton stops below this unbalanced generalized force
@@ -332,6 +334,9 @@ class ClosedLoop:
             with single_threaded_blas():
                 root, new = refine_root(A0, A1, self.delay, value, d)
             new = np.real(new) if np.real(new) @ d > 0 else -np.real(new)
+            if np.max(np.abs(new[: self.nq])) <= TRUNK_MODE_FRACTION * np.max(np.abs(new)):
+                break  # Newton left the trunk's mode for one no coordinate takes part in (e.g. the zero root of an
+                #        activation held at its clamp on this side of a kink): keep the last trunk mode
             converged = abs(root.real - value) <= 1e-3 * abs(root.real) + 1e-9
             value, d = float(root.real), new
             if converged:
@@ -435,13 +440,15 @@ class ClosedLoop:
                 warnings.simplefilter("ignore")
                 return self._margin_with(posture, feedforward=coactivation(self.base, level))
 
-        searches = [("co-activation (minimum activation)", coactivated, ranges["coactivation"], "", True)]
+        uniform = np.ptp(self._k) == 0
+        searches = [("co-activation (minimum activation)", coactivated, ranges["coactivation"], "", True, None)]
         if np.any(self._kp) or np.any(self._kv):
             searches.append(("reflex gain scale", lambda s: self._margin_with(posture, gain_scale=s),
-                             ranges["reflex_gain_scale"], "x", False))
-        searches.append(("bushing stiffness", lambda k: self._margin_with(posture, stiffness=k), ranges["stiffness"], "Nm/rad", True))
-        return [critical_value(name, margin, low, high, unit=unit, rtol=CRITICAL_RTOL, log=log)
-                for name, margin, (low, high), unit, log in searches]
+                             ranges["reflex_gain_scale"], "x", False, 1.0))
+        searches.append(("bushing stiffness", lambda k: self._margin_with(posture, stiffness=k), ranges["stiffness"], "Nm/rad", True,
+                         float(self._k[0]) if uniform else None))
+        return [critical_value(name, margin, low, high, unit=unit, rtol=CRITICAL_RTOL, log=log, current=current)
+                for name, margin, (low, high), unit, log, current in searches]
 
 
 def static_analysis(model, options: TrunkOptions, q, activations, params=None) -> StaticStability:

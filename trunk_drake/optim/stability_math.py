@@ -171,7 +171,9 @@ def refine_root(a0, a1, delay, s, v):
 
 @dataclass
 class CriticalValue:
-    """The smallest value of a parameter in [low, high] that makes `margin(value)` < 0, or None."""
+    """The interval [value, upper] of a parameter in [low, high] over which `margin` < 0 (stable), others
+    held: around the parameter's current value when that is stable, else the first one from `low`.
+    value None: no stable value found; upper None: stable up to `high`."""
 
     name: str
     value: float | None
@@ -180,36 +182,64 @@ class CriticalValue:
     unit: str
     evaluations: int
     note: str = ""
+    upper: float | None = None
 
     def summary(self) -> dict:
-        found = self.value is not None
-        return {"value": self.value, "unit": self.unit, "range": [self.low, self.high],
-                "text": ((f"{self.name} >= {self.value:.4g} {self.unit}" if found
-                          else f"{self.name}: none within [{self.low:.4g}, {self.high:.4g}] {self.unit}").rstrip()
-                         + (f" ({self.note})" if self.note else "")),
-                "evaluations": self.evaluations}
+        return {"value": self.value, "upper": self.upper, "unit": self.unit, "range": [self.low, self.high],
+                "text": (self._interval() + (f" ({self.note})" if self.note else "")), "evaluations": self.evaluations}
+
+    def _interval(self) -> str:
+        if self.value is None:
+            return f"{self.name}: none within [{self.low:.4g}, {self.high:.4g}] {self.unit}".rstrip()
+        if self.upper is None:
+            if self.value <= self.low:
+                return f"{self.name} anywhere in [{self.low:.4g}, {self.high:.4g}] {self.unit}".rstrip()
+            return f"{self.name} >= {self.value:.4g} {self.unit}".rstrip()
+        if self.value <= self.low:
+            return f"{self.name} in [{self.low:.4g}, {self.upper:.4g}] {self.unit} (from the range's lower end)".replace("  ", " ")
+        return f"{self.name} in [{self.value:.4g}, {self.upper:.4g}] {self.unit}".rstrip()
 
 
 def critical_value(name: str, margin, low: float, high: float, unit: str = "", rtol: float = 0.02,
-                   log: bool = True, grid: int = 6) -> CriticalValue:
-    """The smallest value in [low, high] at which `margin(value)` < 0 (stable): a scan of `grid` points
-    (log-spaced if `log` and low > 0) from `low` up to the first stable one, then bisection to `rtol`
-    between it and the unstable point below. A stable window narrower than the scan's spacing can be missed."""
+                   log: bool = True, grid: int = 6, current: float | None = None) -> CriticalValue:
+    """The stable interval of a parameter in [low, high]: `margin(value)` < 0 inside it. Anchored at
+    `current` (the parameter's present value) when that is stable, else at the first stable point of a
+    scan of `grid` points (log-spaced if `log` and low > 0) from `low`; each bound by bisection to `rtol`
+    between the stable anchor side and the nearest unstable scan point. A stable window narrower than the
+    scan's spacing can be missed, and only the one interval is reported."""
     count = 0
+    geometric = log and low > 0
 
     def stable(x):
         nonlocal count
         count += 1
         return margin(x) < 0.0
 
-    points = np.geomspace(low, high, grid) if log and low > 0 else np.linspace(low, high, grid)
-    first = next((k for k, p in enumerate(points) if stable(p)), None)
-    if first is None:
+    def bound(unstable, inside):
+        while abs(inside - unstable) > rtol * max(abs(inside), abs(unstable)):
+            mid = np.sqrt(unstable * inside) if geometric else 0.5 * (unstable + inside)
+            unstable, inside = (unstable, mid) if stable(mid) else (mid, inside)
+        return float(inside)
+
+    points = list(np.geomspace(low, high, grid) if geometric else np.linspace(low, high, grid))
+    if current is not None and low <= current <= high and stable(current):
+        anchor = float(current)
+    else:
+        anchor = next((float(p) for p in points if stable(p)), None)
+    if anchor is None:
         return CriticalValue(name, None, low, high, unit, count)
-    if first == 0:
-        return CriticalValue(name, float(low), low, high, unit, count, "already stable at the lower end")
-    lo, hi = points[first - 1], points[first]
-    while (hi - lo) > rtol * hi:
-        mid = np.sqrt(lo * hi) if log and lo > 0 else 0.5 * (lo + hi)
-        lo, hi = (lo, mid) if stable(mid) else (mid, hi)
-    return CriticalValue(name, float(hi), low, high, unit, count)
+    lower, upper = float(low), None
+    inside = anchor
+    for p in sorted((p for p in points if p < anchor), reverse=True):
+        if not stable(p):
+            lower = bound(p, inside)
+            break
+        inside = p
+    inside = anchor
+    for p in sorted(p for p in points if p > anchor):
+        if not stable(p):
+            upper = bound(p, inside)
+            break
+        inside = p
+    note = "" if current is None else f"now {current:.4g}"
+    return CriticalValue(name, lower, low, high, unit, count, note, upper)

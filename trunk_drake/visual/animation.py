@@ -143,14 +143,24 @@ def serve(model=None, port: int | None = None, duration: float | None = None, po
 
 
 def model_positions(model, coordinates, q) -> np.ndarray:
-    """Rows of q (named `coordinates`) as the model's positions; missing coordinates stay 0."""
-    unknown = [c for c in coordinates if c not in model.coordinates]
+    """Rows of q (named `coordinates`) as the model's positions; missing coordinates stay 0. Level
+    angles of a model whose coordinates move the levels together (the rhythm) become the coordinates
+    that fit them best (least squares through `model.level_matrix`)."""
+    q = np.asarray(q, dtype=float)
+    levels = [c for c in coordinates if c not in model.coordinates and c in model.levels]
+    unknown = [c for c in coordinates if c not in model.coordinates and c not in levels]
     if unknown:
         raise ValueError(f"the result has coordinates {unknown} that the {model.dofs!r} model lacks "
                          f"(its coordinates: {model.coordinates}); pass the model it was simulated with")
     out = np.zeros((len(q), len(model.coordinates)))
     for k, c in enumerate(coordinates):
-        out[:, model.coordinates.index(c)] = q[:, k]
+        if c in model.coordinates:
+            out[:, model.coordinates.index(c)] = q[:, k]
+    if levels:
+        L = model.level_matrix[[model.levels.index(c) for c in levels]]
+        moved = np.flatnonzero(np.abs(L).sum(axis=0) > 0)
+        angles = q[:, [coordinates.index(c) for c in levels]]
+        out[:, moved] = np.linalg.lstsq(L[:, moved], angles.T, rcond=None)[0].T
     return out
 
 

@@ -46,7 +46,7 @@ class Drawing:
 
     def __init__(self, model):
         self.model = model
-        plant = model.plant
+        plant = getattr(model.plant, "full", model.plant)  # the rhythm's CoupledPlant: the joints' plant (welds)
         names = model.body_names
         real = {b.name for b in model.spec.bodies}  # not the massless gimbals between joint axes
         seen, segments = set(), []
@@ -60,7 +60,7 @@ class Drawing:
         self.segments = tuple(segments)
         self.segment_of = {m: i for i, s in enumerate(segments) for m in s.members}
         self._layout = model.path_layout
-        self._context = plant.CreateDefaultContext()
+        self._context = model.plant.CreateDefaultContext()
         self._all_bodies = range(plant.num_bodies())
 
     # ---- per pose -------------------------------------------------------------------
