@@ -16,7 +16,9 @@ from trunk_drake import thesis
 from trunk_drake.data import models_dir
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.io.experiment import load_experiment
-from trunk_drake.optim.fit import GAIN_BOUNDS, OUTPUT_NAMES, fit_reflex_gains, settling_target, targets_from_trials, write_fit
+from trunk_drake.io.trials import OUTPUT_NAMES
+from trunk_drake.optim.fit import fit_reflex_gains, settling_target, targets_from_trials, write_fit
+from trunk_drake.optim.gains import GAIN_BOUNDS
 
 TRIALS = ("trial_1hz_a.csv", "trial_1hz_b.csv")
 THESIS = {

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from trunk_drake.io.storage import write_csv
-from trunk_drake.io.trials import LUMBAR_LEVELS
+from trunk_drake.model.levels import LUMBAR_LEVELS
 from trunk_drake.presets import load_preset
 from trunk_drake.simulation import simulate
 

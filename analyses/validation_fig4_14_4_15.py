@@ -14,7 +14,8 @@ from trunk_drake import thesis
 from trunk_drake.data import models_dir
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.io.experiment import load_experiment
-from trunk_drake.optim.fit import GainLayout, Objective, goodness_of_fit, targets_from_trials
+from trunk_drake.optim.fit import Objective, goodness_of_fit, targets_from_trials
+from trunk_drake.optim.gains import GainLayout
 from trunk_drake.visual import animate_trial
 
 FIT = "fitted_gains_tables4_2_4_3"
@@ -36,7 +37,7 @@ def _held_out(gains, files):
     experiment = load_experiment([ref / f for f in files], ref / "conditions.toml")
     targets = targets_from_trials(experiment.trials, ("lumbar_rotation",), experiment.noise_rad, period=experiment.period,
                                   steady_start=experiment.fade)
-    layout = GainLayout(tuple(gains["kp"]))
+    layout = GainLayout.for_groups(tuple(gains["kp"]))
     model = experiment.model()
     objective = Objective(model, targets, layout, TrunkOptions(**experiment.options))
     vafs, frfs, series = goodness_of_fit(objective, layout.vector(gains), targets)

@@ -20,7 +20,9 @@ import numpy as np
 from trunk_drake.data import models_dir
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.io.experiment import load_experiment
-from trunk_drake.optim.fit import OUTPUT_NAMES, GainLayout, fit_reflex_gains, targets_from_trials
+from trunk_drake.io.trials import OUTPUT_NAMES
+from trunk_drake.optim.fit import fit_reflex_gains, targets_from_trials
+from trunk_drake.optim.gains import GainLayout
 
 
 def main():
@@ -74,7 +76,7 @@ def error_in_sd(gains, std, truth) -> dict[str, float]:
 
 def start_summary(start, result, truth) -> dict:
     """One start: where it began and ended, and its largest error in units of the best fit's SD."""
-    z = error_in_sd(GainLayout(tuple(result.options["groups"])).gains(start.x), result.std, truth)
+    z = error_in_sd(GainLayout.for_groups(result.options["groups"]).gains(start.x), result.std, truth)
     finite = [abs(v) for v in z.values() if np.isfinite(v)]
     return {"x0_gains": (10.0 ** start.x0).tolist(), "cost": start.cost, "iterations": start.iterations,
             "simulations": start.simulations, "status": start.status,

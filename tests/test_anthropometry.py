@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from trunk_drake.data import load_toml
-from trunk_drake.model.anthropometry import Passenger, lumped_segments, with_passenger
+from trunk_drake.model.anthropometry import Passenger, lumped_segments, with_passenger, with_upper_body_mass
 from trunk_drake.model.plant import build_plant
 from trunk_drake.model.spec import BodySpec
 from trunk_drake.model.trunk_model import load_model
@@ -78,3 +78,24 @@ def test_shoulder_joint_centre_is_myoarms_in_myotorso():
 def test_bad_passenger_is_a_clear_error(kwargs, match):
     with pytest.raises(ValueError, match=match):
         Passenger(**kwargs)
+
+
+def test_upper_body_mass_scales_the_thorax_only(spec):
+    """Gravity forces and the mass matrix are linear in the thorax mass (its centre of mass and
+    inertia ellipsoid kept): the changes for a 20 % error are twice those for 10 %."""
+    thorax = next(b for b in spec.bodies if b.name == "torso")
+    scaled = with_upper_body_mass(spec, 1.2)
+    assert sum(b.mass for b in scaled.bodies) == pytest.approx(sum(b.mass for b in spec.bodies) + 0.2 * thorax.mass)
+    plants = [build_plant(with_upper_body_mass(spec, s), "sagittal")[0] for s in (1.0, 1.1, 1.2)]
+    q = np.random.default_rng(5).uniform(-0.2, 0.2, plants[0].num_positions())
+    gravity, mass = [], []
+    for plant in plants:
+        context = plant.CreateDefaultContext()
+        plant.SetPositions(context, q)
+        gravity.append(plant.CalcGravityGeneralizedForces(context))
+        mass.append(plant.CalcMassMatrix(context))
+    assert np.abs(gravity[1] - gravity[0]).max() > 1e-3
+    np.testing.assert_allclose(gravity[2] - gravity[0], 2 * (gravity[1] - gravity[0]), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(mass[2] - mass[0], 2 * (mass[1] - mass[0]), rtol=1e-9, atol=1e-12)
+    with pytest.raises(ValueError, match="upper-body mass scale"):
+        with_upper_body_mass(spec, 0.0)

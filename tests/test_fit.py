@@ -8,9 +8,10 @@ import pytest
 from trunk_drake.data import models_dir
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.io.experiment import load_experiment
-from trunk_drake.optim.fit import (
-    GainLayout, Objective, _inverse_or_inf, fit_reflex_gains, levenberg_marquardt, settling_target, targets_from_trials,
-)
+from trunk_drake.io.trials import OUTPUT_NAMES
+from trunk_drake.optim.fit import Objective, fit_reflex_gains, settling_target, targets_from_trials, write_fit
+from trunk_drake.optim.gains import GainLayout
+from trunk_drake.simulation import load_reflex_gains
 
 REFERENCE = models_dir() / "reference"
 FITTED = ("sacrospinalis", "external_oblique")  # kp and kv of both identifiable on the rhythm (benchmarks/results/fit.json)
@@ -21,14 +22,14 @@ def setting():
     experiment = load_experiment([REFERENCE / "trial_1hz_a.csv"], REFERENCE / "conditions.toml")
     model = experiment.model()  # the data's model: the default passenger (lumbar rhythm)
     truth = tomllib.loads((REFERENCE / "truth.toml").read_text())
-    targets = targets_from_trials(experiment.trials, ("lumbar_rotation", "L5_S1_FE", "L4_L5_FE", "L3_L4_FE", "L2_L3_FE", "L1_L2_FE"),
+    targets = targets_from_trials(experiment.trials, OUTPUT_NAMES,
                                   experiment.noise_rad, t_max=12.0)
     return model, TrunkOptions(**experiment.options), targets, {"kp": truth["kp"], "kv": truth["kv"]}
 
 
 def test_cost_at_truth_is_the_noise_floor(setting):
     model, options, targets, truth = setting
-    layout = GainLayout(tuple(model.groups))
+    layout = GainLayout.for_groups(model.groups)
     r, engaged = Objective(model, targets, layout, options)(layout.vector(truth))
     expected = 0.5 * r.size  # chi-square: one per sample and output at the truth
     assert abs(0.5 * r @ r - expected) < 0.1 * expected
@@ -39,7 +40,7 @@ def test_only_groups_that_move_the_rhythm_are_identifiable(setting):
     """Doubling the external obliques' kv changes the chi-square by many SDs; doubling both psoas gains by less than
     one (0.5 in cost): one lumbar flexion angle cannot determine the psoas' reflexes."""
     model, options, targets, truth = setting
-    layout = GainLayout(tuple(model.groups))
+    layout = GainLayout.for_groups(model.groups)
     objective = Objective(model, targets, layout, options)
     x = layout.vector(truth)
 
@@ -52,7 +53,7 @@ def test_only_groups_that_move_the_rhythm_are_identifiable(setting):
     assert abs(cost(["kp.psoas_major", "kv.psoas_major"]) - at_truth) < 0.5
 
 
-def test_fit_recovers_truth_from_three_starts(setting):
+def test_fit_recovers_truth_from_three_starts(setting, tmp_path):
     model, options, targets, truth = setting
     fixed = {k: {g: v for g, v in truth[k].items() if g not in FITTED} for k in ("kp", "kv")}
     result = fit_reflex_gains(model, targets, groups=FITTED, fixed_gains=fixed, options=options, n_starts=3,
@@ -67,32 +68,13 @@ def test_fit_recovers_truth_from_three_starts(setting):
             assert sd < 0.5 * truth[kind][group], f"{kind}.{group} is identifiable: SD {sd:.4f} vs {truth[kind][group]}"
     assert result.vaf[targets[0].name]["lumbar_rotation"] > 0.95
     assert result.n_simulations == len(targets) * (len(result.history) + 1)  # + the final goodness-of-fit run
-
-
-def test_levenberg_marquardt_on_a_known_problem():
-    t = np.linspace(0, 1, 50)
-    truth = np.array([-0.5, -1.2])
-
-    def fun(x):
-        return 10 ** x[0] * np.exp(-t / 10 ** x[1]) - 10 ** truth[0] * np.exp(-t / 10 ** truth[1])
-
-    def jac(x):
-        h = 1e-7
-        return np.column_stack([(fun(x + h * e) - fun(x)) / h for e in np.eye(2)])
-
-    x, _, r, _, status = levenberg_marquardt(fun, jac, np.array([-2.0, 0.0]), np.array([-3.0, -3.0]), np.zeros(2),
-                                             max_iterations=100, tolerance=1e-14)
-    np.testing.assert_allclose(x, truth, atol=1e-5)
-    # a bound is respected exactly when the optimum lies outside
-    x, *_ = levenberg_marquardt(fun, jac, np.array([-2.0, -2.0]), np.array([-3.0, -3.0]), np.array([-0.8, 0.0]),
-                                max_iterations=100, tolerance=1e-12)
-    assert x[0] == pytest.approx(-0.8)
-
-
-def test_untouched_parameters_get_infinite_variance():
-    cov = _inverse_or_inf(np.array([[4.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.0]]))
-    assert cov[0, 0] == pytest.approx(0.25) and cov[1, 1] == pytest.approx(1.0) and np.isinf(cov[2, 2])
-    assert np.isfinite(cov[:2, :2]).all()
+    # the groups held fixed stay in the result, and a gains.toml written from it keeps them (not zeroed)
+    written = load_reflex_gains(write_fit(result, tmp_path)["gains"])
+    for kind in ("kp", "kv"):
+        assert set(result.gains[kind]) == set(model.groups)
+        for group, value in fixed[kind].items():
+            assert result.gains[kind][group] == value and result.std[kind][group] == 0.0
+        assert written[kind] == pytest.approx(result.gains[kind], rel=1e-5)
 
 
 def test_settling_target_and_bad_input(setting):

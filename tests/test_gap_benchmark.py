@@ -27,17 +27,30 @@ def test_signature_is_the_noise_normalised_difference_and_noise_is_added():
     assert np.array_equal(noisy[0].platform_displacement, a[0].platform_displacement)
 
 
-def test_summary_leaves_unobservable_cases_out_of_the_rates():
-    def row(case, truth, first, selected, observable=True):
-        return {"case": case, "truth": truth, "ranked_first": first, "selected": selected, "observable": observable,
+def test_summary_rates_per_class_and_unobservable_cases_left_out():
+    def row(case, kind, truth, first, selected, unexplained=False, observable=True):
+        return {"case": case, "kind": kind, "truth": truth, "withheld": [[n, {}] for n in truth], "ranked_first": first,
+                "selected": selected, "unexplained": unexplained, "observable": observable, "verdict": "v",
                 "reduction": 0.5, "reduction_above_noise": 0.9, "wall_time_s": 1.0, "signature_chi2": 100.0}
-    rows = [row("d1", "reflex_delay", "reflex_delay", ["reflex_delay"]),
-            row("d2", "extra_damping", "reflex_delay", ["reflex_delay"]),
-            row("s1", "stiffening_discs", "reflex_delay", [], observable=False),
-            row("n1", None, "reflex_delay", []), row("n2", None, "golgi_feedback", ["golgi_feedback"])]
+    rows = [row("d1", "single", ["reflex_delay"], "reflex_delay", ["reflex_delay"]),
+            row("d2", "single", ["extra_damping"], "extra_damping", ["extra_damping", "reflex_delay"]),
+            row("d3", "single", ["golgi_feedback"], "reflex_delay", ["reflex_delay"], unexplained=True),
+            row("s1", "single", ["stiffening_discs"], "reflex_delay", [], observable=False),
+            row("p1", "pair", ["reflex_delay", "slow_activation"], "reflex_delay", ["slow_activation", "reflex_delay"]),
+            row("p2", "pair", ["golgi_feedback", "muscle_strength"], "golgi_feedback", ["golgi_feedback"], unexplained=True),
+            row("o1", "outside", [], "reflex_delay", ["reflex_delay"], unexplained=True),
+            row("o2", "outside", [], "reflex_delay", ["reflex_delay"]),
+            row("o3", "outside", [], "reflex_delay", []),
+            row("n1", "none", [], "reflex_delay", []), row("n2", "none", [], "golgi_feedback", ["golgi_feedback"])]
     s = summarize(rows, 0.1)
-    assert s["ranked_first_rate"] == 0.5 and s["no_effect_correct_rate"] == 0.5
-    assert abs(s["ranked_first_rate_all"] - 1 / 3) < 1e-12
+    m = s["measures"]
     assert s["unobservable"] == ["s1"]
-    assert s["confusion"]["stiffening_discs"]["none"] == 1 and s["confusion"]["none"]["golgi_feedback"] == 1
-    assert "unobservable" in summary_markdown(s)
+    assert m["single_ranked_first"]["rate"] == 2 / 3 and m["single_ranked_first"]["failed"] == ["d3"]
+    assert m["single_exactly_claimed"]["rate"] == 1 / 3 and m["single_exactly_claimed"]["failed"] == ["d2", "d3"]
+    assert m["pair_both_exactly"]["rate"] == 0.5 and m["none_no_claim"]["rate"] == 0.5
+    assert m["outside_honest"]["rate"] == 2 / 3 and m["outside_honest"]["failed"] == ["o2"]
+    # the truth is fully in the selected model in d1, d2 and p1: each verdict calls the remainder noise
+    assert m["noise_verdict_when_complete"]["n"] == 3 and m["noise_verdict_when_complete"]["rate"] == 1.0
+    assert s["gap_reduction_above_noise"]["cases"] == 2  # exactly identified: d1 and p1
+    text = summary_markdown(s)
+    assert "unobservable" in text and "| p2 | pair |" in text and "o2" in text

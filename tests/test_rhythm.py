@@ -219,14 +219,16 @@ def test_fit_objective_on_the_rhythm_is_the_noise_floor_at_the_truth():
     a chi-square of one per sample at those gains (lumbar rotation and the five level angles)."""
     from trunk_drake.gap.benchmark import nominal_options
     from trunk_drake.gap.synthetic import synthetic_trials
-    from trunk_drake.optim.fit import OUTPUT_NAMES, GainLayout, Objective, targets_from_trials
+    from trunk_drake.io.trials import OUTPUT_NAMES
+    from trunk_drake.optim.fit import Objective, targets_from_trials
+    from trunk_drake.optim.gains import GainLayout
 
     model = td.load_model("rhythm")
     truth = nominal_options()
     noise = np.radians(0.05)
     trials = synthetic_trials(model, truth, [("rhythm", 1.0, 4)], noise, seed=5, period=10.0)
     targets = targets_from_trials(trials, OUTPUT_NAMES, noise, period=10.0)
-    layout = GainLayout(tuple(model.groups))
+    layout = GainLayout.for_groups(model.groups)
     r, _ = Objective(model, targets, layout, truth)(layout.vector({"kp": truth.kp, "kv": truth.kv}))
     assert abs(r @ r / r.size - 1.0) < 0.1, r @ r / r.size
     wrong = layout.vector({"kp": truth.kp, "kv": {g: 3 * v for g, v in truth.kv.items()}})

@@ -30,7 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from trunk_drake.metadata import json_default
-from trunk_drake.model.plant import DOFS, LEVELS
+from trunk_drake.model.levels import LEVELS
+from trunk_drake.model.plant import DOFS
 from trunk_drake.parallel import WorkerLost, WorkerPool
 
 CASE_DEFAULTS = {

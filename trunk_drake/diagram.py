@@ -14,7 +14,8 @@ import numpy as np
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Adder, ConstantVectorSource, VectorLogSink
 
-from trunk_drake.model.plant import LEVELS
+from trunk_drake.model.anthropometry import with_upper_body_mass
+from trunk_drake.model.levels import LEVELS
 from trunk_drake.muscle.short_range import ShortRangeStiffness
 from trunk_drake.muscle.thelen import ThelenConstants
 from trunk_drake.systems.bushing import DEFAULT_DAMPING, DEFAULT_STIFFNESS, IntervertebralBushings
@@ -56,6 +57,7 @@ class TrunkOptions:
     strength_scale: float = 1.0
     muscle_mask: np.ndarray | None = None  # 0/1 per muscle: which muscles act (Table 4.1 study)
     srs: ShortRangeStiffness | None = None  # short-range stiffness of active muscle; None: off
+    upper_body_mass_scale: float = 1.0  # scales the thorax body's mass and inertia (an upper-body mass error)
     constants: ThelenConstants = field(default_factory=ThelenConstants)
 
     def per_muscle(self, model, value) -> np.ndarray:
@@ -122,6 +124,8 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
     opts = options or TrunkOptions()
     if opts.pelvis not in PELVIS_MODES:
         raise ValueError(f"pelvis={opts.pelvis!r}; expected one of {PELVIS_MODES}")
+    if opts.upper_body_mass_scale != 1.0:
+        model = model.variant(spec=with_upper_body_mass(model.spec, opts.upper_body_mass_scale))
     pelvis_mode = opts.pelvis if perturbation is not None or opts.pelvis == "seat" else "none"
     if opts.pelvis == "force" and model.dofs in SLIDING_PELVIS:
         base = model.variant(pelvis_free=True, pelvis_mass=opts.pelvis_mass)

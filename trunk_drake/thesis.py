@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from trunk_drake.model.plant import LEVELS
+from trunk_drake.model.levels import LUMBAR_LEVELS
 from trunk_drake.parallel import WorkerPool
 
 SYNTHETIC_NOTE = ("The thesis' experimental data (van Drunen et al.) are not public. Every fit and validation here uses "
@@ -20,7 +20,6 @@ SYNTHETIC_NOTE = ("The thesis' experimental data (van Drunen et al.) are not pub
                   "method (does the fit recover a known truth?), not the model's realism.")
 LOCK_STIFFNESS = 1.0e5  # Nm/rad: a "locked" lumbar level (rotates < 0.01 deg under the trunk's weight)
 LOCK_DAMPING = 1.0e3  # Nms/rad: over-damps the locked levels' fast mode
-LEVEL_NAMES = tuple(f"{level}_FE" for level in LEVELS)  # TrunkOptions.stiffness array order
 _START = time.perf_counter()
 
 
@@ -119,7 +118,7 @@ def trace(result, model) -> dict:
     return {
         "time": result.time,
         "lumbar_rotation_deg": np.degrees(result.lumbar_rotation),
-        "levels_deg": {c: np.degrees(result.coordinate(c)) for c in LEVEL_NAMES},
+        "levels_deg": {c: np.degrees(result.coordinate(c)) for c in LUMBAR_LEVELS},
         "pelvis": result.coordinate("pelvis_tx") if "pelvis_tx" in result.coordinates else None,
         "platform": result.platform,
         "fiber_length": {g: result.normalized_fiber_length[:, i].mean(axis=1) for g, i in groups.items()},

@@ -32,8 +32,8 @@ def run(args) -> int:
 
     from trunk_drake.diagram import TrunkOptions
     from trunk_drake.io.experiment import load_experiment
-    from trunk_drake.io.trials import available_outputs
-    from trunk_drake.optim.fit import OUTPUT_NAMES, fit_reflex_gains, settling_target, targets_from_trials, write_fit
+    from trunk_drake.io.trials import OUTPUT_NAMES, available_outputs
+    from trunk_drake.optim.fit import fit_reflex_gains, settling_target, targets_from_trials, write_fit
     from trunk_drake.optim.static import coactivation
 
     names = {"total": ("lumbar_rotation",), "levels": OUTPUT_NAMES[1:], "all": OUTPUT_NAMES}[args.outputs]

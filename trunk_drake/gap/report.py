@@ -63,7 +63,10 @@ def markdown(d, names: dict) -> str:
         text = ", ".join(f"{n} = {v:.4g}" for n, v in values.items())
         dbic = f"{r['delta_bic']:.1f}" if "delta_bic" in r else "-"
         lines.append(f"| {k} | {r['effect']} | {dbic} | {r['linear_delta_bic']:.1f} | {text} | {r.get('status', '')} |")
-    lines += ["", f"![ranking]({names['ranking_plot']})", "", "## 3. How far the gap shrinks (held-out data)", ""]
+    lines += ["", f"![ranking]({names['ranking_plot']})", "", "Selection, step by step (each effect's own held-out dBIC "
+              "against the model without it):", ""]
+    lines += [f"{k}. {_step(step)}" for k, step in enumerate(d.steps, 1)] or ["1. nothing to select"]
+    lines += ["", "## 3. How far the gap shrinks (held-out data)", ""]
     if s:
         gap = s["gap"]
         lines += ["| model | 1 - VAF (lumbar rotation) | mean abs log FRF error |", "|---|---|---|"]
@@ -74,10 +77,29 @@ def markdown(d, names: dict) -> str:
                   f"{100 * s['reduction_ci95'][1]:.1f} %), {100 * s['reduction_above_noise']:.1f} % of the part above the noise floor.", ""]
         if "shrink_plot" in names:
             lines += [f"![before and after]({names['shrink_plot']})", ""]
+    if d.remainder:
+        r = d.remainder
+        chi2 = ", ".join(f"{o} {v:.3f}" for o, v in r["chi2_per_sample"].items())
+        lines += [f"**What remains is {'' if r['is_noise'] else 'not '}measurement noise** (each test at p < {r['p_threshold']:g}): "
+                  f"held-out chi2 per sample {chi2} (expected 1); residual whiteness (Ljung-Box) p = {r['ljung_box']['p']:.3g}; "
+                  f"FRF errors beyond 2 SD of the data at {r['frf']['significant']} of {r['frf']['lines']} lines "
+                  f"(expected {100 * r['frf']['expected_rate']:.0f} %, p = {r['frf']['p']:.3g}).", ""]
     if d.final.get("effects"):
         lines += ["Selected model (fitted on the training halves):", "",
                   *(f"- {n}: " + ", ".join(f"{k} = {v:.4g}" for k, v in vals.items()) for n, vals in d.final["effects"].items()), ""]
     return "\n".join(lines) + "\n"
+
+
+def _step(step: dict) -> str:
+    model = " + ".join(step["model"]) or "gains only"
+    if step["action"] == "add":
+        values = "; ".join(f"{n}: " + ", ".join(f"{k} = {v:.4g}" for k, v in vals.items()) for n, vals in step["values"].items())
+        return f"add **{step['effect']}** (dBIC {step['delta_bic']:.1f}); joint refit of {model}: {values}"
+    if step["action"] in ("keep", "drop"):
+        own = ", ".join(f"{n} {v:.1f}" for n, v in step["own_delta_bic"].items())
+        return (f"drop **{step['effect']}**" if step["action"] == "drop" else "keep all") + f" (own dBIC: {own}); model: {model}"
+    best = f"best remaining {step['best_candidate']} (dBIC {step['delta_bic']:.1f})" if step["best_candidate"] else "no candidate left"
+    return f"stop: {best} does not pass; model: {model}"
 
 
 def _plot_where(d, path) -> Path:

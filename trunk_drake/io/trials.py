@@ -62,12 +62,12 @@ from typing import Mapping
 
 import numpy as np
 
+from trunk_drake.model.levels import LUMBAR_LEVELS
+
 from .storage import StorageData, read_table
 
-__all__ = ["Trial", "load_trial", "trial_from_table", "available_outputs", "LUMBAR_LEVELS", "FIELD_ALIASES"]
+__all__ = ["Trial", "load_trial", "trial_from_table", "available_outputs", "LUMBAR_LEVELS", "OUTPUT_NAMES", "FIELD_ALIASES"]
 
-#: Per-level sagittal joint angles, caudal to cranial.
-LUMBAR_LEVELS = ("L5_S1_FE", "L4_L5_FE", "L3_L4_FE", "L2_L3_FE", "L1_L2_FE")
 
 #: Recognised base labels (lower case, without unit suffix) per field.
 FIELD_ALIASES: dict[str, tuple[str, ...]] = {
@@ -106,7 +106,8 @@ _SUFFIX = {
     "angle": {"_rad": 1.0, "_deg": math.pi / 180.0},
 }
 _PERTURBATION_FIELDS = ("platform_displacement", "pelvis_displacement", "platform_force", "pelvis_force")
-_RESPONSE_FIELDS = ("lumbar_rotation",) + LUMBAR_LEVELS
+#: the kinematic outputs a trial can give: the total lumbar rotation and the level angles
+OUTPUT_NAMES = ("lumbar_rotation", *LUMBAR_LEVELS)
 
 
 @dataclass
@@ -205,7 +206,7 @@ class Trial:
         return np.sum([self.levels[lv] for lv in LUMBAR_LEVELS], axis=0)
 
 
-def available_outputs(trials, names=("lumbar_rotation", *LUMBAR_LEVELS)) -> tuple[str, ...]:
+def available_outputs(trials, names=OUTPUT_NAMES) -> tuple[str, ...]:
     """The kinematic outputs every trial provides (the total counts when it can be summed)."""
     def has(trial, name):
         try:
@@ -363,7 +364,7 @@ def trial_from_table(
             f"{[FIELD_ALIASES[f][0] for f in _PERTURBATION_FIELDS]} (with optional unit "
             "suffix); rename the column or pass columns={'platform_displacement': '<label>'}."
         )
-    if require_response and not any(f in col_for for f in _RESPONSE_FIELDS):
+    if require_response and not any(f in col_for for f in OUTPUT_NAMES):
         raise ValueError(
             f"{src}: no lumbar angle column among {table.labels}. Recognised names: "
             f"'lumbar_rotation' or the levels {list(LUMBAR_LEVELS)} (optional _deg/_rad "

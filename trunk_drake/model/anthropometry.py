@@ -134,6 +134,15 @@ def _combine(body: BodySpec, segments: list[LumpedSegment]) -> BodySpec:
     return replace(body, mass=mass, com=com, inertia=inertia)
 
 
+def with_upper_body_mass(spec: ModelSpec, scale: float) -> ModelSpec:
+    """`spec` with its thorax body's mass and inertia scaled by `scale` (an upper-body mass error)."""
+    if not (np.isfinite(scale) and scale > 0):
+        raise ValueError(f"upper-body mass scale must be a number > 0, got {scale!r}")
+    bodies = tuple(replace(b, mass=b.mass * scale, inertia=np.asarray(b.inertia, float) * scale) if b.name == THORAX else b
+                   for b in spec.bodies)
+    return replace(spec, bodies=bodies, source=f"{spec.source} + thorax mass x{scale:g}")
+
+
 def with_passenger(spec: ModelSpec, passenger: Passenger) -> ModelSpec:
     """`spec` with the passenger's missing segments lumped on its thorax body."""
     segments = lumped_segments(spec, passenger)

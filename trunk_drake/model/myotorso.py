@@ -18,8 +18,9 @@ from functools import lru_cache
 import numpy as np
 
 from trunk_drake.data import load_toml
+from trunk_drake.model.levels import LEVELS
 from trunk_drake.model.paths import quat_matrix
-from trunk_drake.model.plant import LEVELS, opensim_coordinate
+from trunk_drake.model.plant import opensim_coordinate
 from trunk_drake.model.spec import (
     BodySpec,
     CouplingSpec,

@@ -52,10 +52,10 @@ from pydrake.multibody.tree import (
 from pydrake.common.eigen_geometry import AngleAxis, Quaternion
 
 from trunk_drake.model.coupled import CoupledPlant
+from trunk_drake.model.levels import LEVELS
 from trunk_drake.model.osim_config import AxisChoice, SourceCoordinates, free_axes, level_axes
 from trunk_drake.model.spec import ModelSpec
 
-LEVELS = ("L5_S1", "L4_L5", "L3_L4", "L2_L3", "L1_L2")
 # MyoTorso joint names per level: (flexion-extension, lateral bending, axial rotation)
 _MYOTORSO_LEVEL_JOINTS = {
     "L5_S1": ("flex_extension", "lat_bending", "axial_rotation"),

@@ -15,11 +15,12 @@ from trunk_drake.model.anthropometry import Passenger, with_passenger
 from trunk_drake.model.architecture import with_hill_parameters
 from trunk_drake.model.coupled import CoupledPlant
 from trunk_drake.model.kinematics import TreeKinematics
+from trunk_drake.model.levels import LEVELS
 from trunk_drake.model.myotorso import read_myotorso
 from trunk_drake.model.osim import load_osim_spec
 from trunk_drake.model.osim_kinematics import OsimKinematics
 from trunk_drake.model.paths import MusclePaths, PathLayout, PathPoints, PathState
-from trunk_drake.model.plant import DOFS, LEVELS, Coordinate, build_plant
+from trunk_drake.model.plant import DOFS, Coordinate, build_plant
 from trunk_drake.model.spec import ModelSpec
 
 
@@ -90,8 +91,8 @@ class TrunkModel:
         return {"dofs": self.dofs, "pelvis_free": self.pelvis_free, "pelvis_mass": self.pelvis_mass}
 
     def variant(self, **changes) -> "TrunkModel":
-        """The same model (same spec) rebuilt with other options of `load_model`."""
-        return load_model(spec=self.spec, **{**self.load_options, **changes})
+        """The same model rebuilt with other options of `load_model` (`spec` among them)."""
+        return load_model(**{"spec": self.spec, **self.load_options, **changes})
 
     def muscle_array(self, attribute: str) -> np.ndarray:
         """A per-muscle parameter as an array, e.g. ``muscle_array("max_isometric_force")``."""

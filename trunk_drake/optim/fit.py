@@ -1,15 +1,12 @@
 """Reflex-gain fitting (seed sections 3.2.2 and 4.8): kp and kv per muscle group by
 Levenberg-Marquardt nonlinear least squares on time-domain simulations.
 
-The parameters are log10 of the gains, bounded to GAIN_BOUNDS (wider than the thesis' [0.001, 1]
-of seed 4.8, see there). Each step solves
-the bounded, damped Gauss-Newton subproblem as a quadratic program in Drake's
-MathematicalProgram. The Jacobian comes from forward differences (one simulation per gain,
-in parallel worker processes, each with its own model: Drake objects are not picklable)
-and is kept current between recomputations by Broyden's rank-one secant updates (the secant
-Levenberg-Marquardt method, Madsen, Nielsen & Tingleff 2004, "Methods for non-linear least
-squares problems", section 3.4), so an iteration usually costs one simulation per trial.
-Residuals are model minus measured kinematics divided by the measurement noise, with a
+The parameters are log10 of the gains, bounded to GAIN_BOUNDS (`trunk_drake.optim.gains`; wider than
+the thesis' [0.001, 1] of seed 4.8), fitted by the bounded
+secant Levenberg-Marquardt method of `trunk_drake.optim.least_squares`. The Jacobian comes
+from forward differences (one simulation per gain, in parallel worker processes, each with
+its own model: Drake objects are not picklable) and is kept current between recomputations
+by Broyden updates, so an iteration usually costs one simulation per trial. Residuals are model minus measured kinematics divided by the measurement noise, with a
 constant offset per output fitted in closed form (the thesis removed offsets; removing the
 first, noisy sample instead would bias the fit), so the cost is a chi-square and the
 Jacobian gives the gains' covariance. Two
@@ -19,127 +16,53 @@ interaction (measured trials).
 
 from __future__ import annotations
 
-import dataclasses
 import time as _time
 from dataclasses import dataclass, field
 
 import numpy as np
-from pydrake.solvers import MathematicalProgram, Solve
 from tqdm import tqdm
 
 from trunk_drake.diagram import TrunkOptions
+from trunk_drake.io.prepared import PreparedTrial, prepare_trials
 from trunk_drake.metadata import json_default
+from trunk_drake.optim.gains import GAIN_BOUNDS, GainLayout
+from trunk_drake.optim.least_squares import finite_difference_jacobian, inverse_or_inf, levenberg_marquardt
 from trunk_drake.parallel import WorkerPool
 from trunk_drake.signals import estimate_frf, vaf
-from trunk_drake.signals.sampled import SampledSignal
 from trunk_drake.simulation import SimulationError, simulate
 
-# Lower bound: the thesis' 0.001 (seed 4.8). Upper bound (modelling choice): 30, about 5x the largest gain of
-# the default passenger (thesis Table 4.3 x 9 = 0.1-6.3, with the set point at the neutral fiber length). The
-# thesis' upper bound of 1 belongs to its set point at the optimal fiber length and would cut those gains off.
-GAIN_BOUNDS = (0.001, 30.0)
 # Stop when an accepted step lowers the cost by less than this fraction. The cost is a chi-square/2 of about half
 # the number of samples at the noise floor (14406 for the two reference trials), and one SD of a gain moves it by
 # 0.5: 1e-3 stopped 14 cost units (several SD) short of the minimum; 1e-5 stops within 0.15.
 FIT_TOLERANCE = 1e-5
 THESIS_START = {"car": 0.1, "settling": 0.001}  # seed Tables 4.2-4.3: initial values (mostly)
-OUTPUT_NAMES = ("lumbar_rotation", "L5_S1_FE", "L4_L5_FE", "L3_L4_FE", "L2_L3_FE", "L1_L2_FE")
-
-
-@dataclass
-class FitTarget:
-    """One comparison between simulation and data on the data's uniform time grid."""
-
-    name: str
-    time: np.ndarray  # s, uniform, starting at 0
-    outputs: dict[str, np.ndarray]  # measured (rad), offset removed
-    noise: dict[str, float]  # standard deviation per output (rad): the residual weights
-    signal: object | None = None  # platform signal evaluate(t) -> (x, v, a); None: no perturbation
-    platform: np.ndarray | None = None  # measured platform displacement (m), for the FRF
-    period: float | None = None  # multisine period (s), for the FRF
-    steady_start: float = 2.0  # first sample of whole periods (after the fade-in), s
-
-    @property
-    def fs(self) -> float:
-        return 1.0 / float(np.median(np.diff(self.time)))
-
-    @property
-    def whole_periods(self) -> int:
-        """Number of whole multisine periods after `steady_start` (0 without a period)."""
-        if not self.period or self.platform is None:
-            return 0
-        return int((len(self.time) - round(self.steady_start * self.fs)) // round(self.period * self.fs))
 
 
 def targets_from_trials(trials, outputs=("lumbar_rotation",), noise: float | dict = np.radians(0.1),
                         lowpass_hz: float | None = None, period: float = 20.0, steady_start: float = 2.0,
-                        t_max: float | None = None) -> list[FitTarget]:
-    """Fit targets from measured trials (trunk_drake.io.Trial): platform displacement drives
-    the prescribed pelvis motion; `outputs` are compared (total and/or per-level angles),
-    optionally only up to `t_max` seconds."""
-    targets = []
-    for k, trial in enumerate(trials):
-        where = trial.source or f"trial {k}"
-        if trial.platform_displacement is None and trial.pelvis_displacement is None:
-            raise ValueError(f"{where}: no platform or pelvis displacement column to drive the simulation")
-        keep = slice(None) if t_max is None else trial.time - trial.time[0] <= t_max + 1e-9
-        x = (trial.platform_displacement if trial.platform_displacement is not None else trial.pelvis_displacement)[keep]
-        t = (trial.time - trial.time[0])[keep]
-        measured = {}
-        for name in outputs:
-            series = trial.output(name)
-            measured[name] = np.asarray(series, float)[keep] - series[0]
-        sigma = {n: float(noise[n] if isinstance(noise, dict) else noise) for n in outputs}
-        targets.append(FitTarget(where, t, measured, sigma, SampledSignal(t, x - x[0], lowpass_hz), x - x[0], period, steady_start))
-    return targets
+                        t_max: float | None = None) -> list[PreparedTrial]:
+    """Fit targets from measured trials (see trunk_drake.io.prepared.prepare_trials); `noise`
+    (rad, scalar or per output) weights the residuals."""
+    return prepare_trials(trials, outputs, noise, period, steady_start, lowpass_hz, t_max)
 
 
-def settling_target(duration: float = 5.0, fs: float = 50.0, noise: float = np.radians(0.1)) -> FitTarget:
+def settling_target(duration: float = 5.0, fs: float = 50.0, noise: float = np.radians(0.1)) -> PreparedTrial:
     """Trunk settling (seed 4.8.1): no perturbation, the target is zero lumbar rotation."""
     t = np.arange(int(round(duration * fs)) + 1) / fs
-    return FitTarget("settling", t, {"lumbar_rotation": np.zeros_like(t)}, {"lumbar_rotation": noise})
-
-
-@dataclass
-class GainLayout:
-    """Parameter vector x = log10([kp per group..., kv per group...]); groups not fitted keep
-    their `fixed` gains (0 unless given)."""
-
-    groups: tuple[str, ...]
-    fixed: dict = field(default_factory=lambda: {"kp": {}, "kv": {}})
-
-    @property
-    def names(self) -> list[str]:
-        return [f"kp.{g}" for g in self.groups] + [f"kv.{g}" for g in self.groups]
-
-    def gains(self, x) -> dict[str, dict[str, float]]:
-        """All gains: the fitted groups from x, the others from `fixed`."""
-        g = 10.0 ** np.asarray(x, float)
-        n = len(self.groups)
-        return {"kp": {**self.fixed.get("kp", {}), **dict(zip(self.groups, g[:n].tolist()))},
-                "kv": {**self.fixed.get("kv", {}), **dict(zip(self.groups, g[n:].tolist()))}}
-
-    def members(self, model) -> list[np.ndarray]:
-        """Muscle indices of each group."""
-        index = {m: i for i, m in enumerate(model.muscles)}
-        return [np.array([index[m] for m in model.groups[g]], dtype=int) for g in self.groups]
-
-    def vector(self, gains: dict) -> np.ndarray:
-        values = [gains["kp"][g] for g in self.groups] + [gains["kv"][g] for g in self.groups]
-        return np.log10(np.clip(values, *GAIN_BOUNDS))
+    return PreparedTrial("settling", t, fs, {"lumbar_rotation": np.zeros_like(t)}, {"lumbar_rotation": noise})
 
 
 class Objective:
     """Weighted residuals of all targets for one gain vector (runs the simulations)."""
 
-    def __init__(self, model, targets: list[FitTarget], layout: GainLayout, options: TrunkOptions, accuracy: float | None = None):
+    def __init__(self, model, targets: list[PreparedTrial], layout: GainLayout, options: TrunkOptions, accuracy: float | None = None):
         self.model, self.targets, self.layout, self.options, self.accuracy = model, targets, layout, options, accuracy
 
-    def simulate(self, x, target: FitTarget):
+    def simulate(self, x, target: PreparedTrial):
         return simulate(self.model, duration=float(target.time[-1]), perturbation=target.signal, options=self.options,
                         log_rate=target.fs, accuracy=self.accuracy, **self.layout.gains(x))
 
-    def outputs(self, result, target: FitTarget) -> dict[str, np.ndarray]:
+    def outputs(self, result, target: PreparedTrial) -> dict[str, np.ndarray]:
         out = {}
         for name in target.outputs:
             series = result.lumbar_rotation if name == "lumbar_rotation" else result.coordinate(name)
@@ -233,7 +156,7 @@ def start_points(layout: GainLayout, scenario: str, n_starts: int, seed: int = 0
     return points[:n_starts]
 
 
-def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, fixed_gains: dict | None = None, scenario: str = "car",
+def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_gains: dict | None = None, scenario: str = "car",
                      options: TrunkOptions | None = None,
                      start=None, n_starts: int = 1, workers: int = 2, max_iterations: int = 20, fd_step: float = 0.05,
                      tolerance: float = FIT_TOLERANCE, accuracy: float | None = None, seed: int = 0, progress: bool = True) -> FitResult:
@@ -251,7 +174,7 @@ def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, fixed_gain
         raise ValueError(f"scenario={scenario!r}; expected one of {sorted(THESIS_START)}")
     if not targets:
         raise ValueError("no fit targets: give measured trials (car) or settling_target()")
-    layout = GainLayout(tuple(groups or model.groups), fixed_gains or {"kp": {}, "kv": {}})
+    layout = GainLayout.for_groups(tuple(groups or model.groups), fixed_gains)
     unknown = set(layout.groups) - set(model.groups)
     if unknown:
         raise ValueError(f"unknown muscle groups {sorted(unknown)}; groups: {sorted(model.groups)}")
@@ -287,13 +210,9 @@ def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, fixed_gain
     def jac(x):
         x = np.asarray(x, float)
         r0, engaged = evaluate_many([x])[0]
-        steps = np.where(x + fd_step <= hi, fd_step, -fd_step)
         active = np.concatenate([engaged, np.ones(len(layout.groups), dtype=bool)])  # kp columns, then kv
-        points = [x + np.eye(len(x))[j] * steps[j] for j in np.flatnonzero(active)]
-        J = np.zeros((r0.size, len(x)))
-        for j, (column, _) in zip(np.flatnonzero(active), evaluate_many(points, "Jacobian")):
-            J[:, j] = (column - r0) / steps[j]
-        return J
+        return finite_difference_jacobian(lambda points: [r for r, _ in evaluate_many(points, "Jacobian")], x, fd_step,
+                                          upper=hi, columns=np.flatnonzero(active), r0=r0)
 
     current = {"start": 0}
     starts = []
@@ -312,12 +231,11 @@ def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, fixed_gain
         r = fun(best.x)
 
     dof = max(1, r.size - best.x.size)
-    cov = float(r @ r) / dof * _inverse_or_inf(J.T @ J)
-    gains = layout.gains(best.x)  # the fixed groups included
+    cov = float(r @ r) / dof * inverse_or_inf(J.T @ J)
+    gains = layout.gains(best.x)  # the fixed groups too: a gains.toml written from it must not zero them
     std_x = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    std_flat = (10.0 ** best.x) * np.log(10.0) * std_x
-    n = len(layout.groups)
-    std = {"kp": dict(zip(layout.groups, std_flat[:n].tolist())), "kv": dict(zip(layout.groups, std_flat[n:].tolist()))}
+    std_free = dict(zip(layout.names, ((10.0 ** best.x) * np.log(10.0) * std_x).tolist()))
+    std = {k: {g: std_free.get(f"{k}.{g}", 0.0) for g in gains[k]} for k in gains}  # fixed gains: 0
     vafs, frfs, series = goodness_of_fit(Objective(model, *problem), best.x, targets)
     return FitResult(gains, std, layout.names, cov, float(0.5 * r @ r), vafs, frfs, series, history, starts,
                      counter["simulations"] + len(targets), _time.perf_counter() - wall,
@@ -325,76 +243,7 @@ def fit_reflex_gains(model, targets: list[FitTarget], *, groups=None, fixed_gain
                               "fd_step": fd_step, "accuracy": accuracy, "noise": {t.name: t.noise for t in targets}})
 
 
-def _inverse_or_inf(A: np.ndarray, rcond: float = 1e-12) -> np.ndarray:
-    """(Pseudo-)inverse of a symmetric positive semi-definite matrix A = J^T J, with infinite
-    variance for parameters the data do not touch at all (zero row/column of A)."""
-    untouched = np.abs(np.diag(A)) <= rcond * max(np.abs(np.diag(A)).max(), 0.0)
-    out = np.linalg.pinv(A, rcond=rcond, hermitian=True)
-    out[untouched, :] = np.inf
-    out[:, untouched] = np.inf
-    return out
-
-
-def _bounded_step(J, r, mu, lower, upper) -> np.ndarray:
-    """argmin_d 0.5|J d + r|^2 + 0.5 mu |d|^2 subject to lower <= d <= upper (a QP)."""
-    prog = MathematicalProgram()
-    d = prog.NewContinuousVariables(J.shape[1], "d")
-    prog.AddQuadraticCost(J.T @ J + mu * np.eye(J.shape[1]), J.T @ r, d, is_convex=True)
-    prog.AddBoundingBoxConstraint(lower, upper, d)
-    result = Solve(prog)
-    if not result.is_success():
-        raise RuntimeError(f"Levenberg-Marquardt step QP failed: {result.get_solution_result()}")
-    return np.clip(result.GetSolution(d), lower, upper)
-
-
-def levenberg_marquardt(fun, jac, x0, lo, hi, max_iterations: int = 15, tolerance: float = 1e-3,
-                        refresh_every: int = 4, progress: bool = False, label: str = ""):
-    """Bounded secant Levenberg-Marquardt: returns (x, J, r, iterations, status).
-
-    Damping update of Nielsen (1999); the Jacobian is recomputed by `jac` at the start, every
-    `refresh_every` iterations and after two rejected steps in a row, otherwise Broyden-updated.
-    Stops when an accepted step lowers the cost by less than `tolerance` (relative).
-    """
-    x = np.asarray(x0, float)
-    r = fun(x)
-    J = jac(x)
-    cost = 0.5 * r @ r
-    mu = 1e-3 * max(np.diag(J.T @ J).max(), 1e-12)
-    nu, rejected, since_refresh = 2.0, 0, 0
-    status = f"maximum iterations ({max_iterations}) reached"
-    for it in range(1, max_iterations + 1):
-        d = _bounded_step(J, r, mu, lo - x, hi - x)
-        if np.linalg.norm(d) < 1e-6 * (np.linalg.norm(x) + 1e-6):
-            status = "step below tolerance"
-            break
-        r_new = fun(x + d)
-        cost_new = 0.5 * r_new @ r_new
-        predicted = cost - 0.5 * np.sum((J @ d + r) ** 2)
-        rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
-        J = J + np.outer(r_new - r - J @ d, d) / (d @ d)  # Broyden secant update
-        since_refresh += 1
-        if rho > 0:
-            relative = (cost - cost_new) / cost
-            x, r, cost = x + d, r_new, cost_new
-            mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-            nu, rejected = 2.0, 0
-            if progress:
-                print(f"  {label} iteration {it}: cost {cost:.6g} (-{100 * relative:.2f} %), mu {mu:.3g}", flush=True)
-            if relative < tolerance:
-                status = f"relative cost reduction below {tolerance}"
-                break
-        else:
-            mu *= nu
-            nu *= 2.0
-            rejected += 1
-            if progress:
-                print(f"  {label} iteration {it}: step rejected (rho {rho:.3g}), mu {mu:.3g}", flush=True)
-        if since_refresh >= refresh_every or rejected >= 2:
-            J, since_refresh, rejected = jac(x), 0, 0
-    return x, J, r, it, status
-
-
-def goodness_of_fit(objective: Objective, x, targets: list[FitTarget]):
+def goodness_of_fit(objective: Objective, x, targets: list[PreparedTrial]):
     """VAF per target/output, the FRF (lumbar rotation / platform) and the time series."""
     vafs, frfs, series = {}, {}, {}
     for target in targets:
@@ -417,14 +266,11 @@ def _vaf_or_none(measured, modelled):
     return float(vaf(centred, modelled - measured.mean()))
 
 
-def frf_pair(target: FitTarget, measured, modelled) -> dict:
+def frf_pair(target: PreparedTrial, measured, modelled) -> dict:
     """FRF of platform displacement to rotation (rad/m) for data and model over whole periods."""
-    fs = target.fs
-    i0 = int(round(target.steady_start * fs))
-    n_periods = target.whole_periods
-    if n_periods < 1:
+    if target.whole_periods < 1:
         raise ValueError(f"{target.name}: fewer than one whole {target.period} s period after {target.steady_start} s")
-    window = slice(i0, i0 + n_periods * int(round(target.period * fs)))
+    window, fs = target.steady, target.fs
     u = target.platform[window]
     data = estimate_frf(u, measured[window], fs, target.period)
     model = estimate_frf(u, modelled[window], fs, target.period)
@@ -443,9 +289,11 @@ def write_fit(result: FitResult, out_dir) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     files = {"json": out / "fit.json", "gains": out / "gains.toml"}
     files["json"].write_text(json.dumps(result.to_dict(), indent=2, default=json_default))
+    fitted = set(result.parameter_names)
+
     def line(kind, group, value):
-        std = result.std[kind].get(group)
-        return f"{group} = {value:.6g}  # " + ("fixed, not fitted" if std is None else f"+- {std:.3g}")
+        note = f"+- {result.std[kind][group]:.3g}" if f"{kind}.{group}" in fitted else "fixed, not fitted"
+        return f"{group} = {value:.6g}  # {note}"
 
     lines = ["# Reflex gains fitted by trunk-drake (1 SD in comments).", "", "[kp]"]
     lines += [line("kp", g, v) for g, v in result.gains["kp"].items()]

@@ -31,7 +31,7 @@ from pydrake.autodiffutils import AutoDiffXd, ExtractGradient, ExtractValue
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.solvers import ClarabelSolver, IpoptSolver, MathematicalProgram, SolverOptions
 
-from trunk_drake.model.plant import LEVELS
+from trunk_drake.model.levels import LEVELS
 from trunk_drake.muscle import thelen
 from trunk_drake.systems.bushing import DEFAULT_DAMPING, DEFAULT_STIFFNESS
 from trunk_drake.systems.muscles import muscle_parameters

@@ -25,6 +25,22 @@ def gains_by_group(model, values: dict[str, float], default: float = 0.0) -> np.
     return gains
 
 
+def group_gains(model, value) -> dict[str, float]:
+    """Per-group gains (every group) from a scalar, a per-group dict (missing groups: 0), or a
+    per-muscle array that is constant within each group (the inverse of gains_by_group)."""
+    if isinstance(value, dict):
+        return {g: float(value.get(g, 0.0)) for g in model.groups}
+    arr = np.broadcast_to(np.asarray(value, float), (model.n_muscles,))
+    index = {m: i for i, m in enumerate(model.muscles)}
+    out = {}
+    for g, members in model.groups.items():
+        values = arr[[index[m] for m in members]]
+        if np.ptp(values) > 1e-12:
+            raise ValueError(f"reflex gains differ within group {g!r}: give one gain per muscle group")
+        out[g] = float(values[0])
+    return out
+
+
 class StretchReflex(LeafSystem):
     """The Muscle Fiber Stretch Controller: feedback = kp (l_n - l_d)+ + kv (dl_n)+.
 

@@ -1,0 +1,102 @@
+"""Nonlinear refits: candidate models fitted and scored with full time-domain simulations
+(training on the first halves, scoring on the held-out second halves)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from trunk_drake.diagram import TrunkOptions
+from trunk_drake.gap.linear import OperatingPoint
+from trunk_drake.gap.measures import segment_chi2
+from trunk_drake.gap.space import Fit, SearchSpace
+from trunk_drake.gap.trials import half
+from trunk_drake.optim.least_squares import finite_difference_jacobian, levenberg_marquardt
+from trunk_drake.parallel import WorkerPool
+from trunk_drake.simulation import SimulationError, simulate
+
+DIVERGED = 1e12  # chi-square of a simulation that diverged
+
+
+def simulate_outputs(model, options: TrunkOptions, trial, outputs) -> tuple[np.ndarray, OperatingPoint]:
+    """The outputs of one trial's simulation in its steady window (means removed) and the operating point there."""
+    result = simulate(model, duration=trial.duration, perturbation=trial.signal, options=options, log_rate=trial.fs)
+    columns = [result.lumbar_rotation if o == "lumbar_rotation" else result.coordinate(o) for o in outputs]
+    y = np.column_stack(columns)[trial.steady]
+    return y - y.mean(axis=0), OperatingPoint.of(result, trial.steady)
+
+
+def simulation_job(model, job):
+    """Worker job: one trial's outputs and operating point, or the SimulationError of a diverging run."""
+    options, trial, outputs = job
+    try:
+        return simulate_outputs(model, options, trial, outputs)
+    except SimulationError as err:
+        return err
+
+
+class TimeDomainFitter:
+    """Refit and score models with full nonlinear simulations (first halves train, second test) on
+    the worker pool `simulator`: secant Levenberg-Marquardt over the `free` coordinates of x (others held)."""
+
+    def __init__(self, simulator: WorkerPool, space: SearchSpace, trials, noise, outputs):
+        self.simulator, self.space, self.trials, self.noise, self.outputs = simulator, space, trials, noise, outputs
+        self.simulations = 0
+        self.cache: dict = {}
+
+    def outputs_of(self, points, effects) -> list:
+        keys = [(tuple(e.name for e in effects), np.asarray(p, float).tobytes()) for p in points]
+        todo = {k: p for k, p in zip(keys, points) if k not in self.cache}
+        jobs = [(self.space.options_for(p, effects), t, self.outputs) for p in todo.values() for t in self.trials]
+        sims = self.simulator.map(simulation_job, jobs)
+        self.simulations += len(jobs)
+        n = len(self.trials)
+        for i, k in enumerate(todo):
+            chunk = sims[i * n:(i + 1) * n]
+            self.cache[k] = None if any(isinstance(c, Exception) for c in chunk) else [c[0] for c in chunk]
+        return [self.cache[k] for k in keys]
+
+    def seed(self, x, effects, outputs) -> None:
+        """Register an existing simulation (e.g. the nominal one) for parameter vector x."""
+        self.cache[(tuple(e.name for e in effects), np.asarray(x, float).tobytes())] = outputs
+
+    def chi2(self, outputs, which: str) -> float:
+        if outputs is None:
+            return DIVERGED
+        return sum(segment_chi2(t.steady_outputs, o, self.noise, half(t, which)) for t, o in zip(self.trials, outputs))
+
+    def residual(self, outputs) -> np.ndarray:
+        if outputs is None:
+            return np.full(sum(t.steady_outputs[half(t, "train")].size for t in self.trials), np.sqrt(DIVERGED / 1e3))
+        parts = []
+        for t, o in zip(self.trials, outputs):
+            part = half(t, "train")
+            r = t.steady_outputs[part] - o[part]
+            parts.append(((r - r.mean(axis=0)) / self.noise).ravel())
+        return np.concatenate(parts)
+
+    def fit(self, effects, x0, free, max_iterations: int = 2) -> Fit:
+        lo, hi, _ = self.space.bounds(effects)
+        x_full = np.clip(np.asarray(x0, float), lo, hi)
+        free = np.asarray(free, int)
+
+        def expand(z):
+            x = x_full.copy()
+            x[free] = z
+            return x
+
+        def fun(z):
+            return self.residual(self.outputs_of([expand(z)], effects)[0])
+
+        def jac(z):
+            return finite_difference_jacobian(
+                lambda points: [self.residual(o) for o in self.outputs_of([expand(p) for p in points], effects)],
+                z, 0.02 * (hi[free] - lo[free]), upper=hi[free], r0=fun(z))
+
+        z = x_full[free]
+        if z.size:
+            z, *_ = levenberg_marquardt(fun, jac, z, lo[free], hi[free], max_iterations=max_iterations, tolerance=1e-3,
+                                        refresh_every=max_iterations + 1)
+        x = expand(z)
+        outputs = self.outputs_of([x], effects)[0]
+        return Fit(tuple(e.name for e in effects), x, self.chi2(outputs, "train"), self.chi2(outputs, "test"),
+                   {e.name: v for e, v in zip(effects, self.space.values(x, effects))}, outputs)

@@ -1,0 +1,183 @@
+"""The search for unmodelled effects: a gains-only refit, linear screening of every candidate,
+nonlinear refits of the best, and forward/backward selection on held-out evidence.
+
+Every decision is one effect's own held-out dBIC against the model without it:
+dBIC = chi2_test(without) - chi2_test(with) - k ln N, claimed above `threshold`. Forward steps
+screen every remaining candidate added to the current model (linearly, around the current
+model's simulation), refine the best `refine` with nonlinear simulations (the candidate's
+parameters only) and add the best if its dBIC passes; the accepted model is then refitted
+jointly (gains and all effects). Backward steps refit the model without each selected effect
+and drop the weakest while it does not pass.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from trunk_drake.gap.refit import TimeDomainFitter
+from trunk_drake.gap.screen import LinearScreen
+from trunk_drake.gap.space import Fit, SearchSpace
+from trunk_drake.gap.trials import half
+
+
+@dataclass
+class Settings:
+    """How the search decides: claim threshold (held-out dBIC), at most `max_effects` effects,
+    the best `refine` candidates of each screening refined with nonlinear simulations."""
+
+    threshold: float = 10.0
+    max_effects: int = 3
+    refine: int = 3
+
+
+@dataclass
+class SearchResult:
+    base: Fit  # the gains-only refit
+    ranking: list[dict]  # every candidate alone against the gains-only refit, best held-out dBIC first
+    selected: list[str]  # claimed effects
+    best: Fit  # the selected model (the gains-only refit when nothing is claimed)
+    steps: list[dict] = field(default_factory=list)  # the selection, step by step
+    scores: dict = field(default_factory=dict)  # n_heldout, penalty, refit_heldout_chi2
+
+
+class _Search:
+    def __init__(self, space: SearchSpace, screen: LinearScreen, fitter: TimeDomainFitter, candidates, settings: Settings,
+                 progress):
+        self.space, self.screen, self.fitter, self.settings, self.say = space, screen, fitter, settings, progress or (lambda m: None)
+        self.candidates = {e.name: e for e in candidates}
+        n_test = sum(t.steady_outputs[half(t, "test")].size for t in screen.trials)
+        self.n_test, self.penalty = n_test, float(np.log(n_test))
+        self.models: dict[frozenset, Fit] = {}  # the jointly fitted models, by effect set
+
+    def dbic(self, without: Fit, with_: Fit, effect) -> float:
+        """Held-out evidence for `effect` in `with_` against `without`."""
+        return float(without.heldout_chi2 - with_.heldout_chi2 - len(effect.parameters) * self.penalty)
+
+    def effects(self, names) -> tuple:
+        return tuple(self.candidates[n] for n in names)
+
+    def screen_additions(self, current: Fit, names) -> list[dict]:
+        """Every candidate in `names` added to `current` (its effects held), fitted linearly around
+        `current`'s simulation from three starts; rows sorted by linear dBIC, best first."""
+        space = self.space
+        held = self.effects(current.effects)
+        reference = self.screen.reference(space.options_for(current.x, held), current.outputs)
+        residual = self.screen.residual(space.options_for(current.x, held), "test", reference)
+        rows = []
+        for name in names:
+            e = self.candidates[name]
+            effects = held + (e,)
+            lo, hi, start = space.bounds(effects)
+            free = np.arange(current.x.size, start.size)
+            best, status = None, "screened"
+            for fraction in (None, 0.25, 0.75):  # the catalogue's start, then a quarter and three quarters of the range
+                x0 = np.concatenate([current.x, start[free] if fraction is None else lo[free] + fraction * (hi[free] - lo[free])])
+                try:
+                    fit = self.screen.fit(space, effects, reference, x0, free=free)
+                except (ValueError, RuntimeError, np.linalg.LinAlgError) as err:  # reported, not dropped
+                    status = f"failed in screening: {err}"
+                    continue
+                if best is None or fit.train_chi2 < best.train_chi2:
+                    best = fit
+            row = {"effect": name, "description": e.description, "n_parameters": len(e.parameters),
+                   "linear_delta_bic": -np.inf, "status": status}
+            if best is not None:
+                row.update(linear_delta_bic=float(residual @ residual - best.heldout_chi2 - len(e.parameters) * self.penalty),
+                           linear_values=best.values[name], linear_fit=best, status="screened")
+            rows.append(row)
+            self.say(f"screened {name} on {'+'.join(current.effects) or 'the refitted gains'}: "
+                     f"linear dBIC {row['linear_delta_bic']:.1f}")
+        return sorted(rows, key=lambda r: -r["linear_delta_bic"])
+
+    def refine(self, current: Fit, rows: list[dict]) -> dict[str, Fit]:
+        """Nonlinear refits of the best `refine` screened rows (the added effect's parameters only)."""
+        fits = {}
+        for row in [r for r in rows if "linear_fit" in r][:self.settings.refine]:
+            lin = row.pop("linear_fit")
+            e = self.candidates[row["effect"]]
+            fit = self.fitter.fit(self.effects(current.effects) + (e,), lin.x, np.arange(current.x.size, lin.x.size))
+            if fit.outputs is None:
+                row["status"] = "failed: the refitted model diverged in simulation"
+            else:
+                fits[e.name] = fit
+                row.update(delta_bic=self.dbic(current, fit, e), heldout_chi2=fit.heldout_chi2,
+                           values=fit.values[e.name], status="refined")
+            self.say(f"{e.name}: {row['status']}" + (f", dBIC {row['delta_bic']:.1f} with {row['values']}" if "delta_bic" in row else ""))
+        for row in rows:
+            row.pop("linear_fit", None)
+        return fits
+
+    def joint(self, names, x0) -> Fit:
+        """Gains and every effect of `names` refitted together with nonlinear simulations."""
+        return self.fitter.fit(self.effects(names), x0, np.arange(len(x0)))
+
+    def without(self, current: Fit, name: str) -> Fit:
+        """`current` without effect `name`: the model fitted before with those effects, else a joint refit."""
+        known = self.models.get(frozenset(n for n in current.effects if n != name))
+        if known is not None:
+            return known
+        keep, x, k = [], [current.x[:self.space.rank]], self.space.rank
+        for n in current.effects:
+            size = len(self.candidates[n].parameters)
+            if n != name:
+                keep.append(n)
+                x.append(current.x[k:k + size])
+            k += size
+        fit = self.joint(tuple(keep), np.concatenate(x))
+        self.models[frozenset(keep)] = fit
+        return fit
+
+
+def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainFitter, candidates, settings: Settings,
+                   nominal, progress=None) -> SearchResult:
+    """The gains-only refit, every candidate alone against it (the ranking), then forward and
+    backward selection on each effect's own held-out dBIC (see the module docstring)."""
+    s = _Search(space, screen, fitter, candidates, settings, progress)
+    rank = space.rank
+    fitter.seed(np.zeros(rank), (), nominal)
+    base = fitter.fit((), np.zeros(rank), np.arange(rank), max_iterations=3)
+    s.say(f"refitted the nominal gains: held-out chi2 {base.heldout_chi2:.0f}")
+    ranking = s.screen_additions(base, list(s.candidates))
+    singles = s.refine(base, ranking)
+    ranking.sort(key=lambda r: (-(r.get("delta_bic", -np.inf)), -r["linear_delta_bic"]))
+    s.models[frozenset()] = base
+
+    current, steps, dropped = base, [], set()
+    while len(current.effects) < settings.max_effects:
+        if not current.effects:
+            rows, fits = ranking, singles
+        else:
+            remaining = [n for n in s.candidates if n not in current.effects and n not in dropped]
+            if not remaining:
+                break
+            rows = s.screen_additions(current, remaining)
+            fits = s.refine(current, rows)
+        scored = sorted(((s.dbic(current, f, s.candidates[n]), n) for n, f in fits.items()), reverse=True)
+        if not scored or scored[0][0] <= settings.threshold:
+            steps.append({"action": "stop", "model": list(current.effects),
+                          "best_candidate": scored[0][1] if scored else None, "delta_bic": scored[0][0] if scored else None,
+                          "heldout_chi2": current.heldout_chi2})
+            break
+        dbic, name = scored[0]
+        joint = s.joint(current.effects + (name,), fits[name].x)
+        current = joint if joint.outputs is not None and joint.train_chi2 <= fits[name].train_chi2 else fits[name]
+        s.models[frozenset(current.effects)] = current
+        steps.append({"action": "add", "effect": name, "delta_bic": dbic, "model": list(current.effects),
+                      "heldout_chi2": current.heldout_chi2, "values": current.values})
+        s.say(f"added {name} (dBIC {dbic:.1f}); joint refit: held-out chi2 {current.heldout_chi2:.0f}")
+        while len(current.effects) > 1:  # every selected effect must still earn its place
+            without = {n: s.without(current, n) for n in current.effects}
+            own = {n: s.dbic(w, current, s.candidates[n]) for n, w in without.items()}
+            weakest = min(own, key=own.get)
+            if own[weakest] > settings.threshold:
+                steps.append({"action": "keep", "model": list(current.effects), "own_delta_bic": own})
+                break
+            steps.append({"action": "drop", "effect": weakest, "own_delta_bic": own,
+                          "model": [n for n in current.effects if n != weakest]})
+            s.say(f"dropped {weakest} (own dBIC {own[weakest]:.1f})")
+            dropped.add(weakest)
+            current = without[weakest]
+    return SearchResult(base, ranking, list(current.effects), current, steps,
+                        {"n_heldout": s.n_test, "penalty": s.penalty, "refit_heldout_chi2": base.heldout_chi2})

@@ -1,0 +1,116 @@
+"""Bounded nonlinear least squares: the secant Levenberg-Marquardt solver, the finite-difference
+Jacobian and the covariance of the fitted parameters.
+
+Every fit in trunk-drake (reflex gains, gap candidates on linear and nonlinear models) and the
+linearisation of the diagram use these. Residual functions for the Jacobian take a *list* of
+points and return a list of residual vectors, so a caller can evaluate the displaced points
+together (in parallel worker processes, or batched).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.solvers import MathematicalProgram, Solve
+
+
+def finite_difference_jacobian(residuals, x, steps, *, central: bool = False, upper=None, columns=None,
+                               r0=None) -> np.ndarray:
+    """d residuals / dx at `x` by finite differences; `residuals(points) -> [vector, ...]`.
+
+    Forward differences by default (`r0`, the residuals at x, is evaluated unless given), with
+    a backward step wherever x + step would pass `upper`; central differences with
+    ``central=True``. `steps` is a scalar or one per coordinate. Only `columns` (indices) are
+    computed, the others are zero: e.g. parameters known to have no effect at x.
+    """
+    x = np.asarray(x, float)
+    steps = np.broadcast_to(np.asarray(steps, float), x.shape).copy()
+    if upper is not None:
+        steps = np.where(x + steps <= upper, steps, -steps)
+    columns = np.arange(x.size) if columns is None else np.asarray(columns, int)
+    unit = np.eye(x.size)
+    if central:
+        values = residuals([x + steps[j] * unit[j] for j in columns] + [x - steps[j] * unit[j] for j in columns])
+        plus, minus = values[:columns.size], values[columns.size:]
+        size = np.size(values[0]) if values else 0
+    else:
+        if r0 is None:
+            r0 = residuals([x])[0]
+        plus = residuals([x + steps[j] * unit[j] for j in columns])
+        minus = [r0] * columns.size
+        size = np.size(r0)
+    J = np.zeros((size, x.size))
+    for j, p, m in zip(columns, plus, minus):
+        J[:, j] = (np.asarray(p) - np.asarray(m)) / (2 * steps[j] if central else steps[j])
+    return J
+
+
+def levenberg_marquardt(fun, jac, x0, lo, hi, max_iterations: int = 15, tolerance: float = 1e-3,
+                        refresh_every: int = 4, progress: bool = False, label: str = ""):
+    """Bounded secant Levenberg-Marquardt: returns (x, J, r, iterations, status).
+
+    Each step solves the bounded, damped Gauss-Newton subproblem as a quadratic program in
+    Drake's MathematicalProgram. Damping update of Nielsen (1999); the Jacobian is recomputed
+    by `jac` at the start, every `refresh_every` iterations and after two rejected steps in a
+    row, otherwise kept current by Broyden's rank-one secant update (Madsen, Nielsen & Tingleff
+    2004, "Methods for non-linear least squares problems", section 3.4). Stops when an
+    accepted step lowers the cost 0.5 |r|^2 by less than `tolerance` (relative).
+    """
+    x = np.asarray(x0, float)
+    r = fun(x)
+    J = jac(x)
+    cost = 0.5 * r @ r
+    mu = 1e-3 * max(np.diag(J.T @ J).max(), 1e-12)
+    nu, rejected, since_refresh = 2.0, 0, 0
+    status = f"maximum iterations ({max_iterations}) reached"
+    for it in range(1, max_iterations + 1):
+        d = _bounded_step(J, r, mu, lo - x, hi - x)
+        if np.linalg.norm(d) < 1e-6 * (np.linalg.norm(x) + 1e-6):
+            status = "step below tolerance"
+            break
+        r_new = fun(x + d)
+        cost_new = 0.5 * r_new @ r_new
+        predicted = cost - 0.5 * np.sum((J @ d + r) ** 2)
+        rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
+        J = J + np.outer(r_new - r - J @ d, d) / (d @ d)  # Broyden secant update
+        since_refresh += 1
+        if rho > 0:
+            relative = (cost - cost_new) / cost
+            x, r, cost = x + d, r_new, cost_new
+            mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+            nu, rejected = 2.0, 0
+            if progress:
+                print(f"  {label} iteration {it}: cost {cost:.6g} (-{100 * relative:.2f} %), mu {mu:.3g}", flush=True)
+            if relative < tolerance:
+                status = f"relative cost reduction below {tolerance}"
+                break
+        else:
+            mu *= nu
+            nu *= 2.0
+            rejected += 1
+            if progress:
+                print(f"  {label} iteration {it}: step rejected (rho {rho:.3g}), mu {mu:.3g}", flush=True)
+        if since_refresh >= refresh_every or rejected >= 2:
+            J, since_refresh, rejected = jac(x), 0, 0
+    return x, J, r, it, status
+
+
+def _bounded_step(J, r, mu, lower, upper) -> np.ndarray:
+    """argmin_d 0.5|J d + r|^2 + 0.5 mu |d|^2 subject to lower <= d <= upper (a QP)."""
+    prog = MathematicalProgram()
+    d = prog.NewContinuousVariables(J.shape[1], "d")
+    prog.AddQuadraticCost(J.T @ J + mu * np.eye(J.shape[1]), J.T @ r, d, is_convex=True)
+    prog.AddBoundingBoxConstraint(lower, upper, d)
+    result = Solve(prog)
+    if not result.is_success():
+        raise RuntimeError(f"Levenberg-Marquardt step QP failed: {result.get_solution_result()}")
+    return np.clip(result.GetSolution(d), lower, upper)
+
+
+def inverse_or_inf(A: np.ndarray, rcond: float = 1e-12) -> np.ndarray:
+    """(Pseudo-)inverse of a symmetric positive semi-definite matrix A = J^T J, with infinite
+    variance for parameters the data do not touch at all (zero row/column of A)."""
+    untouched = np.abs(np.diag(A)) <= rcond * max(np.abs(np.diag(A)).max(), 0.0)
+    out = np.linalg.pinv(A, rcond=rcond, hermitian=True)
+    out[untouched, :] = np.inf
+    out[:, untouched] = np.inf
+    return out
