@@ -29,7 +29,7 @@ from trunk_drake.optim.gains import GAIN_BOUNDS, GainLayout
 from trunk_drake.optim.least_squares import finite_difference_jacobian, inverse_or_inf, levenberg_marquardt
 from trunk_drake.parallel import WorkerPool
 from trunk_drake.signals import estimate_frf, vaf
-from trunk_drake.simulation import SimulationError, simulate
+from trunk_drake.simulation import SimulationError, differentiable_settings, simulate
 
 # Stop when an accepted step lowers the cost by less than this fraction. The cost is a chi-square/2 of about half
 # the number of samples at the noise floor (14406 for the two reference trials), and one SD of a gain moves it by
@@ -57,10 +57,11 @@ class Objective:
 
     def __init__(self, model, targets: list[PreparedTrial], layout: GainLayout, options: TrunkOptions, accuracy: float | None = None):
         self.model, self.targets, self.layout, self.options, self.accuracy = model, targets, layout, options, accuracy
+        self.integration = differentiable_settings(model, options)  # finite differences need smooth simulations
 
     def simulate(self, x, target: PreparedTrial):
         return simulate(self.model, duration=float(target.time[-1]), perturbation=target.signal, options=self.options,
-                        log_rate=target.fs, accuracy=self.accuracy, **self.layout.gains(x))
+                        log_rate=target.fs, accuracy=self.accuracy, **self.integration, **self.layout.gains(x))
 
     def outputs(self, result, target: PreparedTrial) -> dict[str, np.ndarray]:
         out = {}
