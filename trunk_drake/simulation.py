@@ -17,12 +17,14 @@ from trunk_drake.diagram import SLIDING_PELVIS, TrunkDiagram, TrunkOptions, buil
 from trunk_drake.metadata import run_metadata
 
 STIFF_INTEGRATOR = "radau3"  # L-stable: independent vertebrae's damping modes reach ~4000 1/s; compliant tendons
-NONSTIFF_INTEGRATOR = "runge_kutta3"  # the rhythm with rigid tendons: no vertebra of its own, slowest-decaying
-#   fast modes are activation (~-64 1/s); 3 evaluations per 12.5 ms step instead of radau3's ~10, and 17x closer
-#   to the 1e-6 reference on the default main job (benchmarks/simulate.py)
-DEFAULT_ACCURACY = 1e-2
+DEFAULT_ACCURACY = 1e-2  # radau3's target accuracy
+MAX_STEP = 0.0125  # s, radau3's; longer steps make Newton fail at the reflexes' kinks (measured: 14 ms ok, 20 ms not)
+NONSTIFF_INTEGRATOR = "runge_kutta3"  # the rhythm with rigid tendons: no vertebra of its own, its fastest modes are
+#   activation dynamics (~-64 1/s); error-controlled explicit steps need no Newton iterations at the kinks
+NONSTIFF_ACCURACY = 1e-3
+NONSTIFF_MAX_STEP = 0.025  # s; 20 s main job: 2649 evaluations and 0.0014 deg RMS from the 1e-6 reference
+#   (radau3 at its settings: 16,305 and 0.0026 deg; benchmarks/simulate.py)
 DEFAULT_LOG_RATE = 100.0  # Hz, uniform output grid (step-wise logs are resampled onto it)
-MAX_STEP = 0.0125  # s; longer steps make Newton fail at the reflexes' kinks (measured: 14 ms ok, 20 ms not)
 FIXED_STEP_INTEGRATORS = ("explicit_euler", "semi_explicit_euler", "runge_kutta2")
 DIVERGENCE_ANGLE = 1.6  # rad; a lumbar joint beyond this has left any physiological range
 DIVERGENCE_SPEED = 50.0  # rad/s
@@ -204,7 +206,7 @@ def default_integrator(model, options: TrunkOptions) -> str:
 
 def simulate(model, duration: float | None = None, perturbation="multisine", bandwidth: float = 1.0, seed: int = 0,
              lowpass_hz: float | None = None,
-             options: TrunkOptions | None = None, integrator: str | None = None, accuracy: float = DEFAULT_ACCURACY,
+             options: TrunkOptions | None = None, integrator: str | None = None, accuracy: float | None = None,
              log_rate: float = DEFAULT_LOG_RATE, max_step: float | None = None, progress: bool = False,
              **option_overrides) -> SimulationResult:
     """Simulate the trunk model (pelvis perturbation, muscles, reflexes, bushings).
@@ -214,11 +216,15 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
     ``evaluate(t) -> (x, v, a)`` and a ``duration``. `duration` defaults to the signal's
     duration (or 5 s without perturbation). Every integrator step is logged and the
     histories are resampled (shape-preserving cubic, as the thesis did) onto a uniform grid
-    of `log_rate` Hz. `integrator` defaults to `default_integrator`, `max_step` to
-    min(12.5 ms, 1 / (10 * bandwidth)). Other keyword arguments override fields of `TrunkOptions` (e.g. ``kp=0.2, tendon="compliant"``).
+    of `log_rate` Hz. `integrator` defaults to `default_integrator`; `accuracy` and `max_step` to
+    that integrator's (radau3: 1e-2, 12.5 ms; runge_kutta3: 1e-3, 25 ms), the step also at most
+    1 / (10 * bandwidth) and the shortest reflex delay. Other keyword arguments override fields of `TrunkOptions` (e.g. ``kp=0.2, tendon="compliant"``).
     """
     opts = dataclasses.replace(options or TrunkOptions(), **option_overrides)
     integrator = integrator or default_integrator(model, opts)
+    nonstiff = integrator == NONSTIFF_INTEGRATOR
+    if accuracy is None:
+        accuracy = NONSTIFF_ACCURACY if nonstiff else DEFAULT_ACCURACY
     signal = _perturbation(perturbation, bandwidth, seed, lowpass_hz)
     if duration is None:
         duration = signal.duration if signal is not None else 5.0
@@ -229,7 +235,8 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
     if integrator not in FIXED_STEP_INTEGRATORS and not 0 < accuracy < 1:
         raise ValueError(f"accuracy must lie in (0, 1), got {accuracy!r}")
     if max_step is None:
-        max_step = min(MAX_STEP, 0.1 / bandwidth)
+        delays = [d for d in (opts.reflex_delay, opts.vestibular_delay) if d > 0]
+        max_step = min(NONSTIFF_MAX_STEP if nonstiff else MAX_STEP, 0.1 / bandwidth, *delays)
     td = build_trunk_diagram(model, opts, signal)
     simulator = Simulator(td.diagram)
     ResetIntegratorFromFlags(simulator, integrator, max_step)
