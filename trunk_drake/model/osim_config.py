@@ -3,7 +3,8 @@
 A plant coordinate is the displacement of one transform axis (a `JointSpec` of the .osim
 spec) times a sign: for ``"sagittal"`` and ``"spine3d"`` the lumbar levels' rotation axes
 (flexion = rotation about -z of the vertebra, lateral bending about +x, axial rotation about
-+y, the OpenSim lumbar-model axes), for ``"all"`` one axis per unlocked coordinate. The
++y, the OpenSim lumbar-model axes; ``"rhythm"`` couples the flexion axes by the file's couplers,
+`level_rhythm`), for ``"all"`` one axis per unlocked coordinate. The
 model's own coordinate then follows from the axis' (affine) function. Its other coordinates
 are either held (locked, or unrelated to the plant's coordinates: at their default) or follow
 through the file's coordinate couplers; couplers whose dependent coordinate is itself a plant

@@ -13,6 +13,8 @@ coordinate ``lumbar_FE``, the lumbar flexion (S1-L1, = the sum of the five level
 turns every level and the routing bodies in the fixed proportions of the spec's rhythm
 (`ModelSpec.rhythm`, the constrained source model's couplings). Drake's continuous plant has no
 constraints, so the plant is a `CoupledPlant` simulating the chain in that one coordinate.
+On an OpenSim model the rhythm is the file's: its level flexion axes following one coordinate
+through its linear coordinate couplers (`rhythm_spec`).
 
 ``"all"``: every joint of the spec with its own name and sign (for user and test models).
 
