@@ -3,7 +3,8 @@ car-passenger interaction.
 
 Settling (4.8.1): no perturbation, target zero lumbar rotation, co-activation 0.020, bushings
 100 Nm/rad and 7.5 Nms/rad. Car passenger (4.8.2): the two 0.2-1 Hz trials of the SYNTHETIC
-reference data (models/reference) with their known conditions; the fitted gains are compared
+reference data (models/reference) with their known conditions, on their model (the default
+passenger), from the preset's gains; the fitted gains are compared
 with the data's truth (error in standard deviations) and shown beside the thesis' Table 4.3,
 which belongs to another model and other (measured) data. The car fit's time series and FRFs
 are saved for the validation section (no second fit).
@@ -72,7 +73,7 @@ def _gain_figure(path, settling, car, truth, tables):
             ax.set_title(f"{name}: {key}", fontsize=9)
             ax.grid(alpha=0.3, axis="y")
             ax.legend(fontsize=7)
-    fig.suptitle("Fitted reflex gains (log scale); bounds 0.001-1 as the thesis")
+    fig.suptitle(f"Fitted reflex gains (log scale); bounds {GAIN_BOUNDS[0]:g}-{GAIN_BOUNDS[1]:g} (the thesis: 0.001-1)")
     return thesis.save_figure(fig, path)
 
 
@@ -93,8 +94,8 @@ def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, tria
     experiment = load_experiment([ref / t for t in trials], ref / "conditions.toml")
     targets = targets_from_trials(experiment.trials, OUTPUT_NAMES, experiment.noise_rad, period=experiment.period,
                                   steady_start=experiment.fade, t_max=t_max)
-    car = fit_reflex_gains(model, targets, options=TrunkOptions(**experiment.options), n_starts=1, workers=workers,
-                           max_iterations=max_iterations, progress=False)
+    car = fit_reflex_gains(experiment.model(), targets, options=TrunkOptions(**experiment.options), start=experiment.preset_gains(),
+                           n_starts=1, workers=workers, max_iterations=max_iterations, progress=False)
     car_files = write_fit(car, f"{out_dir}/car")
     arrays = thesis.save_fit_arrays(car, f"{out_dir}/car/fit_arrays.npz")
     thesis.log(f"  car fit: {car.wall_time_s:.0f} s, {car.n_simulations} simulations")
@@ -156,13 +157,17 @@ def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, tria
         notes=[thesis.SYNTHETIC_NOTE,
                "The thesis' Tables 4.2/4.3 come from a different model (Schmid et al., 274 muscles, 9 groups) and measured data; "
                "they are shown for orientation, not as a target.",
-               "Car-passenger fit conditions are the synthetic data's (conditions.toml: k = 300 Nm/rad, c = 6 Nms/rad, co-activation "
-               "0.03, feed-forward from truth_feedforward.csv); residuals are weighted by the known 0.05 deg noise, so the cost's "
-               "noise floor is half the number of samples. Outputs: total lumbar rotation and the five level angles.",
+               f"Car-passenger fit conditions and model are the synthetic data's ({thesis.reference_truth_label()}; "
+               "feed-forward from truth_feedforward.csv; conditions.toml); the fit starts from the preset's gains. Residuals "
+               f"are weighted by the known {np.degrees(experiment.noise_rad):.2f} deg noise, so the cost's noise floor is half "
+               "the number of samples. Outputs: total lumbar rotation and the five level angles (in the lumbar rhythm fixed "
+               "shares of one lumbar flexion angle, each with its own noise).",
                "The settling target is zero rotation; its VAF is undefined (no variance) and not reported.",
-               "'not identifiable' = infinite standard deviation: the data do not constrain that gain. A kp is unidentifiable "
-               "when the group's fibers never exceed l_d = 1 (optimal length) in the trials, so its length reflex never "
-               "engages, in the truth either; the fit then leaves it at its start value.",
+               "'not identifiable' = infinite standard deviation: the data do not constrain that gain (a kp whose group's "
+               "fibers never exceed the set point l_d in the trials); 'well determined' = SD below half the fitted value. "
+               "With the set point at the neutral length every group's length reflex engages on one side of the sway, so "
+               "every SD is finite, but one lumbar angle cannot tell 14 gains apart: the weakly determined ones are "
+               "combinations of groups acting alike (benchmarks/results/fit.json).",
                f"Settling: the zero-rotation target is reached (cost {settling.cost:.3g} against a noise floor of "
                f"{0.5 * target.time.size:.0f}), so standard deviations carry no information there and are not shown.",
                *([f"Settling co-activation: {warning}."] if warning else [])],

@@ -4,7 +4,8 @@ applied to a free pelvis, and the resulting pelvis motion against the platform m
 The 0.2-1 Hz multisine (20 s period, 2 s fades, seed 0) drives a 10,000 kg pelvis on its
 anterior-posterior slide; the same trial with exactly prescribed pelvis motion is the
 reference. Two trunk configurations: the thesis' final model (k = 125 Nm/rad, c = 7.5 Nms/rad,
-co-activation 0.020, Table 4.3 gains) and the synthetic reference data's truth configuration.
+co-activation 0.020, Table 4.3 gains) on the run's model and the synthetic reference data's truth
+configuration on its own model (models/reference: the default passenger).
 """
 
 import numpy as np
@@ -25,12 +26,13 @@ def run(out_dir, model=None, workers=2, inputs=None, duration=None, seed=0):
     signal = make_multisine(f_max=1.0, seed=seed, fade_shape="quintic")
     duration = duration or signal.duration
     final, warning = thesis.thesis_final_options(model)
-    configs = {"thesis final model": {**final, **thesis.thesis_gains()},
-               "reference-data truth": {**thesis.reference_truth_options(), **thesis.truth_gains()}}
-    cases = [{"label": f"{name}, {pelvis}", "simulate": dict(duration=duration, perturbation=signal, pelvis_mass=THESIS_PELVIS_MASS,
-                                                             **{**options, "pelvis": pelvis})}
-             for name, options in configs.items() for pelvis in ("force", "prescribed")]
-    traces = thesis.run_cases(cases, model, workers)
+    configs = {"thesis final model": (model, {**final, **thesis.thesis_gains()}),
+               "reference-data truth": (thesis.reference_model(), {**thesis.reference_truth_options(), **thesis.truth_gains()})}
+    traces = thesis.run_cases_per_model(
+        [(config_model, [{"label": f"{name}, {pelvis}", "simulate": dict(duration=duration, perturbation=signal,
+                                                                         pelvis_mass=THESIS_PELVIS_MASS, **{**options, "pelvis": pelvis})}
+                         for pelvis in ("force", "prescribed")])
+         for name, (config_model, options) in configs.items()], workers)
 
     t = np.linspace(0.0, duration, int(round(duration * 100)) + 1)
     x, _, a = signal.evaluate(t)

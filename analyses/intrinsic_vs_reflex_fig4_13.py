@@ -2,8 +2,8 @@
 properties plus stretch reflexes, under the 0.2-1 Hz pelvis perturbation.
 
 Two configurations: the thesis' final model (k = 125 Nm/rad, c = 7.5 Nms/rad, co-activation
-0.020, Table 4.3 gains, l_d = 1) and the synthetic reference data's truth configuration
-(k = 300 Nm/rad, c = 6 Nms/rad, co-activation 0.03, truth gains)."""
+0.020, Table 4.3 gains, l_d = 1) on the run's model, and the synthetic reference data's truth
+configuration on its own model (models/reference: the default passenger with the truth gains)."""
 
 import numpy as np
 
@@ -40,12 +40,12 @@ def run(out_dir, model=None, workers=2, inputs=None, duration=None, seed=0):
     signal = make_multisine(f_max=1.0, seed=seed, fade_shape="quintic")
     duration = duration or signal.duration
     final, warning = thesis.thesis_final_options(model)
-    configs = {"thesis final model": (final, thesis.thesis_gains()),
-               "reference-data truth": (thesis.reference_truth_options(), thesis.truth_gains())}
-    cases = [{"label": f"{name}, {kind}", "simulate": dict(duration=duration, perturbation=signal, **options, **gains)}
-             for name, (options, reflex) in configs.items()
-             for kind, gains in (("intrinsic only", {"kp": 0.0, "kv": 0.0}), ("intrinsic + reflexes", reflex))]
-    traces = thesis.run_cases(cases, model, workers)
+    configs = {"thesis final model": (model, final, thesis.thesis_gains()),
+               "reference-data truth": (thesis.reference_model(), thesis.reference_truth_options(), thesis.truth_gains())}
+    traces = thesis.run_cases_per_model(
+        [(config_model, [{"label": f"{name}, {kind}", "simulate": dict(duration=duration, perturbation=signal, **options, **gains)}
+                         for kind, gains in (("intrinsic only", {"kp": 0.0, "kv": 0.0}), ("intrinsic + reflexes", reflex))])
+         for name, (config_model, options, reflex) in configs.items()], workers)
     metrics = {label: _metrics(tr) for label, tr in traces.items()}
 
     plt = thesis.pyplot()
@@ -75,7 +75,7 @@ def run(out_dir, model=None, workers=2, inputs=None, duration=None, seed=0):
         comparison=[["thesis final model (k 125, c 7.5, co-activation 0.020), intrinsic only", "unstable: moves away from equilibrium",
                      cell("thesis final model, intrinsic only")],
                     ["... with Table 4.3 reflexes", "stable", cell("thesis final model, intrinsic + reflexes")],
-                    ["synthetic-data truth (k 300, c 6, co-activation 0.03), intrinsic only", "-",
+                    [f"{thesis.reference_truth_label()}, intrinsic only", "-",
                      cell("reference-data truth, intrinsic only")],
                     ["... with the truth reflex gains", "-", cell("reference-data truth, intrinsic + reflexes")]],
         figures=[figure],

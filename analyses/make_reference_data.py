@@ -1,34 +1,35 @@
 """Generate the SYNTHETIC reference data set in models/reference/ (not measurements!).
 
-The thesis' experimental data (van Drunen et al.) are not public. This script simulates
-our own diagram in a documented "truth" configuration whose reflex gains, co-activation and
-intervertebral stiffness/damping differ from the package defaults, adds measurement noise
-to the angles, and writes one CSV per trial plus models/reference/truth.toml. The reflex-gain
-fit must recover the truth gains from these files. Run: python analyses/make_reference_data.py
+The thesis' experimental data (van Drunen et al.) are not public. This script simulates the
+default passenger (`load_preset("default")`: lumbar rhythm, de Leva arms and head, bushings,
+co-activation, neutral reflex set point) with truth reflex gains = the preset's gains times
+fixed per-group factors (0.5x-2x, `TRUTH_FACTORS`), so that the fit has a non-trivial truth to
+recover; adds white measurement noise to the angles; and writes one CSV per trial plus
+conditions.toml (what the fit knows), truth_feedforward.csv and truth.toml (what it must find).
+Run: python analyses/make_reference_data.py
 """
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from pathlib import Path
 
 import numpy as np
 
-import trunk_drake as td
 from trunk_drake.io.storage import write_csv
 from trunk_drake.model.levels import LUMBAR_LEVELS
-from trunk_drake.optim.static import coactivation
+from trunk_drake.presets import load_preset
 from trunk_drake.simulation import simulate
 
 OUT = Path(__file__).resolve().parents[1] / "models" / "reference"
-TRUTH = {
-    "kp": {"sacrospinalis": 0.30, "transversospinalis": 0.15, "quadratus_lumborum": 0.10, "internal_oblique": 0.05,
-           "external_oblique": 0.08, "rectus_abdominis": 0.20, "psoas_major": 0.02},
-    "kv": {"sacrospinalis": 0.20, "transversospinalis": 0.30, "quadratus_lumborum": 0.05, "internal_oblique": 0.10,
-           "external_oblique": 0.03, "rectus_abdominis": 0.15, "psoas_major": 0.05},
+PRESET = "default"
+TRUTH_FACTORS = {  # truth gain = factor x the preset's gain (modelling choice: a spread of 0.5x-2x, both sides of 1)
+    "kp": {"sacrospinalis": 1.5, "transversospinalis": 0.7, "quadratus_lumborum": 0.5, "internal_oblique": 2.0,
+           "external_oblique": 1.4, "rectus_abdominis": 0.6, "psoas_major": 2.0},
+    "kv": {"sacrospinalis": 0.7, "transversospinalis": 1.5, "quadratus_lumborum": 0.6, "internal_oblique": 1.4,
+           "external_oblique": 0.5, "rectus_abdominis": 2.0, "psoas_major": 0.5},
 }
-CONFIG = {"stiffness": 300.0, "damping": 6.0, "coactivation_min_activation": 0.03, "l_desired": 1.0,
-          "tendon": "rigid", "pelvis": "prescribed"}
 NOISE_DEG = 0.05  # white measurement noise on every angle (motion capture, ~0.2 mm over a 20 cm link)
 TRIALS = [  # name, bandwidth (Hz), multisine seed
     ("trial_1hz_a", 1.0, 11),
@@ -36,42 +37,74 @@ TRIALS = [  # name, bandwidth (Hz), multisine seed
     ("trial_3hz", 3.0, 13),
 ]
 FS = 100.0
+INTEGRATOR, ACCURACY = "radau3", 1e-4  # the truth simulations: L-stable, error-controlled well below the noise
+
+
+def truth_gains(preset) -> dict:
+    """The preset's gains times `TRUTH_FACTORS`."""
+    gains = preset.gains()
+    return {k: {g: round(v * TRUTH_FACTORS[k][g], 6) for g, v in gains[k].items()} for k in ("kp", "kv")}
+
+
+def conditions(preset) -> dict:
+    """What an experimenter knows: the preset (model: configuration and passenger) and every diagram setting."""
+    return {"preset": preset.name, "stiffness": preset.stiffness, "damping": preset.damping,
+            "coactivation_min_activation": preset.coactivation, "l_desired": preset.l_desired,
+            "reflex_delay": preset.reflex_delay, "srs": preset.srs, "tendon": "rigid", "pelvis": "prescribed"}
+
+
+def _toml(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return f'"{value}"' if isinstance(value, str) else repr(value)
 
 
 def main():
-    model = td.load_model("sagittal")
+    preset = load_preset(PRESET)
+    model = preset.model()
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # co-activation leaves a small residual moment (reported by the optimiser)
-        feedforward = coactivation(model, CONFIG["coactivation_min_activation"])
+        warnings.simplefilter("ignore")  # co-activation's small residual moment (reported by `trunk-drake stability`)
+        options = preset.options(model)
+    truth = truth_gains(preset)
+    options = dataclasses.replace(options, **truth)
     rng = np.random.default_rng(2026)
     OUT.mkdir(parents=True, exist_ok=True)
     # the truth feed-forward excitation itself, so the data stay reproducible if the optimiser changes
     (OUT / "truth_feedforward.csv").write_text("muscle,excitation\n" + "".join(
-        f"{m},{u!r}\n" for m, u in zip(model.muscles, feedforward.tolist())))
+        f"{m},{u!r}\n" for m, u in zip(model.muscles, options.feedforward.tolist())))
     for name, bandwidth, seed in TRIALS:
-        result = simulate(model, bandwidth=bandwidth, seed=seed, feedforward=feedforward, stiffness=CONFIG["stiffness"],
-                          damping=CONFIG["damping"], l_desired=CONFIG["l_desired"], log_rate=FS, accuracy=1e-4, **TRUTH)
+        result = simulate(model, bandwidth=bandwidth, seed=seed, options=options, log_rate=FS, integrator=INTEGRATOR,
+                          accuracy=ACCURACY)
         noise = lambda: rng.normal(0.0, np.radians(NOISE_DEG), len(result.time))  # noqa: E731
         levels = {f"{lvl}_rad": result.coordinate(lvl) + noise() for lvl in LUMBAR_LEVELS}
         columns = {"platform_displacement_m": result.platform[:, 0], "lumbar_rotation_rad": result.lumbar_rotation + noise(), **levels}
         meta = {"synthetic": "yes - generated by analyses/make_reference_data.py, NOT measured data",
                 "bandwidth_hz": bandwidth, "multisine_seed": seed, "period_s": 20.0, "fade_s": 2.0,
-                "noise_deg": NOISE_DEG, "truth": "models/reference/truth.toml"}
+                "noise_deg": NOISE_DEG, "preset": preset.name, "integrator": f"{INTEGRATOR}, accuracy {ACCURACY:g}",
+                "truth": "models/reference/truth.toml"}
         write_csv(OUT / f"{name}.csv", time=result.time, columns=columns, in_degrees=False, metadata=meta)
-        print(f"{name}: {result.sim_time_s:.0f} s simulated, lumbar rotation rms {np.degrees(np.std(result.lumbar_rotation)):.2f} deg")
-    conditions = ["# Experimental conditions of the SYNTHETIC reference trials (analyses/make_reference_data.py):",
-                  "# known to the fit. The reflex gains to be recovered are in truth.toml.", "",
-                  "[conditions]"]
-    conditions += [f'{k} = "{v}"' if isinstance(v, str) else f"{k} = {v}" for k, v in CONFIG.items()]
-    conditions += ['feedforward_file = "truth_feedforward.csv"', f"noise_deg = {NOISE_DEG}", f"sampling_hz = {FS}",
-                   "period_s = 20.0", "fade_s = 2.0"]
-    (OUT / "conditions.toml").write_text("\n".join(conditions) + "\n")
-    truth = ["# Truth reflex gains of the SYNTHETIC reference trials (analyses/make_reference_data.py).",
+        rotation = np.degrees(result.lumbar_rotation)
+        print(f"{name}: {result.sim_time_s:.0f} s simulated, lumbar rotation rms {np.std(rotation):.2f} deg, "
+              f"peak {np.max(np.abs(rotation - rotation[0])):.2f} deg from the start")
+    lines = ["# Experimental conditions of the SYNTHETIC reference trials (analyses/make_reference_data.py):",
+             f"# known to the fit. The model is the {preset.name!r} preset's (models/presets/{preset.name}.toml:",
+             f"# {preset.dofs} configuration, passenger {preset.passenger}); the reflex gains to be",
+             "# recovered are in truth.toml.", "", "[conditions]"]
+    lines += [f"{k} = {_toml(v)}" for k, v in conditions(preset).items()]
+    lines += ['feedforward_file = "truth_feedforward.csv"', f"noise_deg = {NOISE_DEG}", f"sampling_hz = {FS}",
+              "period_s = 20.0", "fade_s = 2.0"]
+    (OUT / "conditions.toml").write_text("\n".join(lines) + "\n")
+    lines = ["# Truth reflex gains of the SYNTHETIC reference trials (analyses/make_reference_data.py).",
+             f"# Each gain = the {preset.name!r} preset's gain (thesis Table 4.3 x {preset.gain_scale:g}) times a fixed",
+             "# factor of [factors] (0.5x-2x, chosen so that the fit has a non-trivial truth to recover).",
              "# The fit must recover them; conditions.toml holds everything else.", "", "[trials]"]
-    truth += [f"{name} = {{ bandwidth_hz = {bw}, multisine_seed = {seed} }}" for name, bw, seed in TRIALS]
+    lines += [f"{name} = {{ bandwidth_hz = {bw}, multisine_seed = {seed} }}" for name, bw, seed in TRIALS]
     for key in ("kp", "kv"):
-        truth += ["", f"[{key}]"] + [f"{g} = {v}" for g, v in TRUTH[key].items()]
-    (OUT / "truth.toml").write_text("\n".join(truth) + "\n")
+        lines += ["", f"[{key}]"] + [f"{g} = {v}" for g, v in truth[key].items()]
+    for key in ("kp", "kv"):
+        lines += ["", f"[factors.{key}]"] + [f"{g} = {v}" for g, v in TRUTH_FACTORS[key].items()]
+    (OUT / "truth.toml").write_text("\n".join(lines) + "\n")
+
 
 if __name__ == "__main__":
     main()

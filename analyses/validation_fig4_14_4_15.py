@@ -2,7 +2,8 @@
 frequency domain (FRF of lumbar rotation to platform displacement).
 
 Uses the car fit of fitted_gains_tables4_2_4_3 (passed by the runner: no second fit) on the
-two 0.2-1 Hz SYNTHETIC trials, and predicts the held-out 0.2-3 Hz trial with the fitted gains.
+two 0.2-1 Hz SYNTHETIC trials, and predicts the held-out 0.2-3 Hz trial with the fitted gains on
+the data's own model (the preset of models/reference/conditions.toml; the runner's model is unused).
 """
 
 from pathlib import Path
@@ -30,15 +31,17 @@ def _slope(frequencies, gain, f_max=1.0) -> float:
     return float(np.polyfit(np.log10(frequencies[keep]), np.log10(gain[keep]), 1)[0]) if keep.sum() >= 2 else float("nan")
 
 
-def _held_out(model, gains, files):
+def _held_out(gains, files):
+    """Prediction of the held-out trials on the data's own model (the preset of their conditions)."""
     ref = models_dir() / "reference"
     experiment = load_experiment([ref / f for f in files], ref / "conditions.toml")
     targets = targets_from_trials(experiment.trials, ("lumbar_rotation",), experiment.noise_rad, period=experiment.period,
                                   steady_start=experiment.fade)
     layout = GainLayout.for_groups(tuple(gains["kp"]))
+    model = experiment.model()
     objective = Objective(model, targets, layout, TrunkOptions(**experiment.options))
     vafs, frfs, series = goodness_of_fit(objective, layout.vector(gains), targets)
-    return {name: {**series[name], "vaf": vafs[name]["lumbar_rotation"], "frf": frfs.get(name)} for name in series}, experiment
+    return {name: {**series[name], "vaf": vafs[name]["lumbar_rotation"], "frf": frfs.get(name)} for name in series}, experiment, model
 
 
 def _animation(model, gains, experiment, out_dir) -> str:
@@ -60,16 +63,12 @@ def run(out_dir, model=None, workers=2, inputs=None, held_out=HELD_OUT):
     entry = (inputs or {}).get(FIT)
     if not entry or entry.get("status") != "ok":
         raise RuntimeError(f"the validation needs the car-passenger fit: run {FIT} first (the runner does so)")
-    if model is None:
-        from trunk_drake.model.trunk_model import load_model
-
-        model = load_model("sagittal")
     car = entry["numbers"]["car"]
     trained = thesis.load_fit_arrays(entry["numbers"]["files"]["car_arrays"])
     for name, s in trained.items():
         s["vaf"] = car["vaf"][name]["lumbar_rotation"]
     thesis.log(f"  predicting the held-out trial(s) {', '.join(held_out)} with the fitted gains ...")
-    predicted, experiment = _held_out(model, car["gains"], held_out)
+    predicted, experiment, model = _held_out(car["gains"], held_out)  # the data's model, not the runner's
     noise = experiment.noise_rad
     runs = {**{f"{Path(n).stem} (fitted)": s for n, s in trained.items()},
             **{f"{Path(n).stem} (held out)": s for n, s in predicted.items()}}

@@ -24,6 +24,8 @@ NONSTIFF_INTEGRATOR = "runge_kutta3"  # the rhythm with rigid tendons: no verteb
 NONSTIFF_ACCURACY = 1e-3
 NONSTIFF_MAX_STEP = 0.025  # s; 20 s main job: 2649 evaluations and 0.0014 deg RMS from the 1e-6 reference
 #   (radau3 at its settings: 16,305 and 0.0026 deg; benchmarks/simulate.py)
+FIXED_STEP = 0.005  # s, runge_kutta2 steps of `differentiable_settings`: the reference data's chi-square at the truth
+#   as with runge_kutta3 at 1e-3 (7235.8 vs 7235.7 for one trial), finite differences as smooth as radau3's
 DEFAULT_LOG_RATE = 100.0  # Hz, uniform output grid (step-wise logs are resampled onto it)
 FIXED_STEP_INTEGRATORS = ("explicit_euler", "semi_explicit_euler", "runge_kutta2")
 DIVERGENCE_ANGLE = 1.6  # rad; a lumbar joint beyond this has left any physiological range
@@ -202,6 +204,17 @@ def default_integrator(model, options: TrunkOptions) -> str:
     """The integrator `simulate` uses unless told: explicit Runge-Kutta 3 (error-controlled) for the rhythm
     with rigid tendons, radau3 where the model is stiff (independent vertebrae, compliant tendons)."""
     return NONSTIFF_INTEGRATOR if model.coupling is not None and options.tendon == "rigid" else STIFF_INTEGRATOR
+
+
+def differentiable_settings(model, options: TrunkOptions) -> dict:
+    """`simulate` keywords for simulations that are differentiated by finite differences (the fits): the result must
+    be a smooth function of the parameters. An error-controlled step sequence changes with them, and its error then
+    enters the Jacobian as information the data do not hold (runge_kutta3 at 1e-3 on the reference data: the columns
+    of the psoas gains 100-500x their size, their standard deviations as much too small). Where `default_integrator`
+    is runge_kutta3: fixed runge_kutta2 steps of `FIXED_STEP`; radau3 already runs at its maximum step, which binds."""
+    if default_integrator(model, options) == NONSTIFF_INTEGRATOR:
+        return {"integrator": "runge_kutta2", "max_step": FIXED_STEP}
+    return {}
 
 
 def simulate(model, duration: float | None = None, perturbation="multisine", bandwidth: float = 1.0, seed: int = 0,

@@ -67,13 +67,31 @@ def thesis_final_options(model) -> tuple[dict, str | None]:
             "damping": reference_value("intervertebral.thesis_fitted.damping"), "feedforward": feedforward}, warning
 
 
-def reference_truth_options() -> dict:
-    """simulate() options of the synthetic reference data's truth (models/reference, without gains)."""
+def reference_experiment():
+    """The synthetic reference data's first trial with its conditions (models/reference)."""
     from trunk_drake.data import models_dir
     from trunk_drake.io.experiment import load_experiment
 
     ref = models_dir() / "reference"
-    return dict(load_experiment([ref / "trial_1hz_a.csv"], ref / "conditions.toml").options)
+    return load_experiment([ref / "trial_1hz_a.csv"], ref / "conditions.toml")
+
+
+def reference_truth_options() -> dict:
+    """simulate() options of the synthetic reference data's truth (models/reference, without gains)."""
+    return dict(reference_experiment().options)
+
+
+def reference_model():
+    """The model of the synthetic reference data (the preset named in its conditions: the default passenger)."""
+    return reference_experiment().model()
+
+
+def reference_truth_label() -> str:
+    """The reference data's truth configuration in a few words, from its conditions."""
+    experiment = reference_experiment()
+    o = experiment.options
+    return (f"synthetic-data truth ({experiment.preset or 'MyoTorso'} passenger: k {o['stiffness']:g}, c {o['damping']:g}, "
+            f"co-activation {experiment.coactivation_min_activation:g}, l_d {o['l_desired']}, truth gains)")
 
 
 def truth_gains() -> dict:
@@ -137,6 +155,14 @@ def run_cases(cases: list[dict], model=None, workers: int = 2) -> dict[str, dict
     with WorkerPool(model, min(workers, len(cases))) as pool:
         results = pool.map(_simulate_case, cases)
     return {r["label"]: r for r in results}
+
+
+def run_cases_per_model(cases_by_model, workers: int = 2) -> dict[str, dict]:
+    """`run_cases` for several models: [(model, cases), ...] -> one {label: trace or error}."""
+    traces: dict[str, dict] = {}
+    for model, cases in cases_by_model:
+        traces.update(run_cases(cases, model, workers))
+    return traces
 
 
 def final_deg(tr: dict, key: str = "lumbar_rotation_deg") -> float | None:

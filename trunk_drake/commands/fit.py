@@ -19,7 +19,8 @@ def add_command(sub) -> None:
                    help="fit the total lumbar rotation, the five level angles, or all (default; those present in the data)")
     p.add_argument("--t-max", type=positive, default=None, metavar="SECONDS",
                    help="fit only the first SECONDS of each trial (a quick look; the FRF needs whole periods)")
-    p.add_argument("--starts", type=count, default=1, help="number of starting points (multi-start)")
+    p.add_argument("--starts", type=count, default=1,
+                   help="number of starting points (multi-start; the first: the data's preset's gains, else the thesis' initial values)")
     p.add_argument("--workers", type=count, default=2, help="parallel simulation processes")
     p.add_argument("--max-iterations", type=count, default=20)
     p.add_argument("--json", action="store_true", help="print a JSON summary")
@@ -42,6 +43,7 @@ def run(args) -> int:
         model = load_model(args.dofs or "sagittal")
         targets = [settling_target()]
         options = TrunkOptions(feedforward=coactivation(model, 0.02))
+        start = None
     else:
         if not args.data:
             raise ValueError("the car scenario needs measured trials: trunk-drake fit DATA... --out DIR")
@@ -56,7 +58,8 @@ def run(args) -> int:
         if "feedforward" not in opts:
             opts["feedforward"] = coactivation(model, experiment.coactivation_min_activation or 0.02)
         options = TrunkOptions(**opts)
-    result = fit_reflex_gains(model, targets, scenario=args.scenario, options=options, n_starts=args.starts,
+        start = experiment.preset_gains()
+    result = fit_reflex_gains(model, targets, scenario=args.scenario, options=options, start=start, n_starts=args.starts,
                               workers=args.workers, max_iterations=args.max_iterations, progress=not args.json)
     files = write_fit(result, args.out)
     summary = {"gains": result.gains, "std": result.std, "vaf": result.vaf, "cost": result.cost,

@@ -26,8 +26,9 @@ from trunk_drake.gap.diagnose import diagnose_gap
 from trunk_drake.gap.report import write_diagnosis
 from trunk_drake.gap.synthetic import add_noise, clean_trials, signature_chi2
 from trunk_drake.metadata import json_default
+from trunk_drake.optim.gains import GAIN_BOUNDS
 from trunk_drake.parallel import WorkerPool
-from trunk_drake.thesis import reference_truth_options, truth_gains
+from trunk_drake.thesis import reference_model, reference_truth_options, truth_gains
 
 DEFAULT_NOISE_DEG = 0.1  # motion-capture angle noise (modelling choice: ~0.2 mm marker noise over a few cm)
 GAIN_SPREAD = 0.2  # SD of log(gain factor) of the perturbed nominal gains
@@ -37,12 +38,10 @@ CLASSES = ("single", "pair", "outside", "none")
 
 
 def truth_configuration():
-    """The benchmark's truth, in one place: (the default model, `load_model()` with whatever the
-    default passenger is; `nominal_options()`). Regenerating models/reference for another
-    default model moves the benchmark with it."""
-    from trunk_drake.model.trunk_model import load_model
-
-    return load_model(), nominal_options()
+    """The benchmark's truth, in one place: (the reference data's model, built from the preset of
+    its conditions; `nominal_options()`). Regenerating models/reference for another default
+    passenger moves the benchmark with it."""
+    return reference_model(), nominal_options()
 
 
 def nominal_options() -> TrunkOptions:
@@ -137,7 +136,7 @@ def _name(effects) -> str:
 def truth_options(nominal: TrunkOptions, case: Case) -> TrunkOptions:
     """The case's truth: perturbed gains plus its withheld effects or mechanisms (data-level ones excepted)."""
     rng = np.random.default_rng(case.seed)
-    perturbed = {k: {g: float(np.clip(v * np.exp(rng.normal(0.0, GAIN_SPREAD)), 1e-3, 1.0)) for g, v in getattr(nominal, k).items()}
+    perturbed = {k: {g: float(np.clip(v * np.exp(rng.normal(0.0, GAIN_SPREAD)), *GAIN_BOUNDS)) for g, v in getattr(nominal, k).items()}
                  for k in ("kp", "kv")}
     truth = dataclasses.replace(nominal, **perturbed)
     for name, values in case.effects:

@@ -38,6 +38,15 @@ class Experiment:
 
         return load_preset(self.preset).model(dofs)
 
+    def preset_gains(self) -> dict | None:
+        """The reflex gains of the data's preset (the fit's natural start); None without a preset or its reflexes."""
+        if self.preset is None:
+            return None
+        from trunk_drake.presets import load_preset
+
+        preset = load_preset(self.preset)
+        return preset.gains() if preset.reflex_gains is not None else None
+
 
 def load_experiment(paths, conditions: str | None = None) -> Experiment:
     """Trials from files and/or folders (every .csv/.sto/.mot inside), and the conditions from
@@ -72,9 +81,13 @@ def _apply_conditions(experiment: Experiment, path: Path) -> None:
     if table is None:
         raise ValueError(f"{path} has no [conditions] table")
     options = {}
-    for key in ("stiffness", "damping", "l_desired", "tendon", "pelvis"):
+    for key in ("stiffness", "damping", "l_desired", "reflex_delay", "tendon", "pelvis"):
         if key in table:
             options[key] = table[key]
+    if table.get("srs"):
+        from trunk_drake.muscle.short_range import ShortRangeStiffness
+
+        options["srs"] = ShortRangeStiffness.from_reference()
     if "feedforward_file" in table:
         ff_path = path.parent / table["feedforward_file"]
         options["feedforward"] = np.loadtxt(ff_path, delimiter=",", skiprows=1, usecols=1)

@@ -12,7 +12,10 @@ import numpy as np
 
 from trunk_drake.systems.reflex import group_gains
 
-GAIN_BOUNDS = (0.001, 1.0)  # seed section 4.8
+# Lower bound: the thesis' 0.001 (seed 4.8). Upper bound (modelling choice): 30, about 5x the largest gain of
+# the default passenger (thesis Table 4.3 x 9 = 0.1-6.3, with the set point at the neutral fiber length). The
+# thesis' upper bound of 1 belongs to its set point at the optimal fiber length and would cut those gains off.
+GAIN_BOUNDS = (0.001, 30.0)
 KINDS = ("kp", "kv")
 
 
