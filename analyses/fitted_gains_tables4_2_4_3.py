@@ -17,7 +17,7 @@ from trunk_drake.data import models_dir
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.io.experiment import load_experiment
 from trunk_drake.io.trials import OUTPUT_NAMES
-from trunk_drake.optim.fit import fit_reflex_gains, settling_target, targets_from_trials, write_fit
+from trunk_drake.optim.fit import MAX_ITERATIONS, fit_reflex_gains, settling_target, targets_from_trials, write_fit
 from trunk_drake.optim.gains import GAIN_BOUNDS
 
 TRIALS = ("trial_1hz_a.csv", "trial_1hz_b.csv")
@@ -77,7 +77,7 @@ def _gain_figure(path, settling, car, truth, tables):
     return thesis.save_figure(fig, path)
 
 
-def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, trials=TRIALS, max_iterations=20, t_max=None):
+def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, trials=TRIALS, max_iterations=MAX_ITERATIONS, t_max=None):
     if model is None:
         from trunk_drake.model.trunk_model import load_model
 

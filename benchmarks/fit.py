@@ -24,14 +24,14 @@ from trunk_drake.data import models_dir
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.io.experiment import load_experiment
 from trunk_drake.io.trials import OUTPUT_NAMES
-from trunk_drake.optim.fit import Objective, fit_reflex_gains, targets_from_trials
+from trunk_drake.optim.fit import MAX_ITERATIONS, Objective, fit_reflex_gains, targets_from_trials
 from trunk_drake.optim.gains import GainLayout
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--starts", type=int, default=1, help="number of starts (first: the preset's gains)")
-    parser.add_argument("--max-iterations", type=int, default=20, help="per start (the fit's default: 20)")
+    parser.add_argument("--max-iterations", type=int, default=MAX_ITERATIONS, help="per start (the fit's default)")
     parser.add_argument("--progress", action="store_true", help="the fit's progress on stderr")
     args = parser.parse_args()
     reference = models_dir() / "reference"

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from trunk_drake.commands import count, dofs_argument, positive, print_json
-from trunk_drake.optim.fit import THESIS_START
+from trunk_drake.optim.fit import MAX_ITERATIONS, THESIS_START
 
 
 def add_command(sub) -> None:
@@ -22,7 +22,7 @@ def add_command(sub) -> None:
     p.add_argument("--starts", type=count, default=1,
                    help="number of starting points (multi-start; the first: the data's preset's gains, else the thesis' initial values)")
     p.add_argument("--workers", type=count, default=2, help="parallel simulation processes")
-    p.add_argument("--max-iterations", type=count, default=20)
+    p.add_argument("--max-iterations", type=count, default=MAX_ITERATIONS, help="per start")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.set_defaults(func=run)
 
