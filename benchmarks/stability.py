@@ -4,7 +4,7 @@ The report: closed-loop equilibrium near upright, static energy Hessian, charact
 with the one-sided branches of a real rightmost root, and the three critical values by
 bisection (co-activation, reflex gain scale, bushing stiffness). Model loading is timed
 separately. Load-independent measures: diagram derivative evaluations and characteristic-root
-solves. Target (shared/DESIGN.md): 5 s for the report.
+solves. Target (the performance budget): 5 s for the report.
 """
 
 import json

@@ -4,7 +4,7 @@ Frame: ``StaticOptimizer.solve(q, v, vdot)`` on the spine3d model (210 muscles, 
 path kinematics, force split, inverse dynamics, program update and solve, at postures near
 neutral (a quarter of each joint range, where the muscles can hold gravity). Strength:
 ``isometric_strength`` (pelvis locked, upright) including building the optimizer, direct
-maxima only and with the thesis' 10 N sweeps. Targets (shared/DESIGN.md): 20 ms per frame,
+maxima only and with the thesis' 10 N sweeps. Targets (the performance budget): 20 ms per frame,
 10 s for the three maxima.
 """
 

@@ -32,6 +32,7 @@ def test_python_api_block_runs(tmp_path, monkeypatch):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the co-activation's residual-moment note
         exec(compile(readme_block("## Python API", "python"), "README.md (Python API)", "exec"), scope)
+    assert scope["upright"].sim_time_s == 2.0 and scope["seated"].dofs == "rhythm"
     assert scope["result"].sim_time_s == 20.0 and (root / "results" / "sim" / "states.sto").exists()
     assert set(scope["strength"]) == {"extension", "flexion", "lateral"}
     assert 0.001 <= scope["fit"].gains["kp"]["sacrospinalis"] <= 1.0

@@ -18,6 +18,8 @@ _API = {
     "stability": "trunk_drake.optim.stability",
     "StabilityResult": "trunk_drake.optim.stability",
     "animate": "trunk_drake.visual",
+    "load_preset": "trunk_drake.presets",
+    "Preset": "trunk_drake.presets",
 }
 
 __all__ = list(_API)

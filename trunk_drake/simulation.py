@@ -26,6 +26,7 @@ NONSTIFF_MAX_STEP = 0.025  # s; 20 s main job: 2649 evaluations and 0.0014 deg R
 #   (radau3 at its settings: 16,305 and 0.0026 deg; benchmarks/simulate.py)
 FIXED_STEP = 0.005  # s, runge_kutta2 steps of `differentiable_settings`: the reference data's chi-square at the truth
 #   as with runge_kutta3 at 1e-3 (7235.8 vs 7235.7 for one trial), finite differences as smooth as radau3's
+MIN_DELAY_STEP = 1e-3  # s: a shorter delay does not shorten the steps further (held within one step, it lags < 1 ms)
 DEFAULT_LOG_RATE = 100.0  # Hz, uniform output grid (step-wise logs are resampled onto it)
 FIXED_STEP_INTEGRATORS = ("explicit_euler", "semi_explicit_euler", "runge_kutta2")
 DIVERGENCE_ANGLE = 1.6  # rad; a lumbar joint beyond this has left any physiological range
@@ -248,7 +249,7 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
     if integrator not in FIXED_STEP_INTEGRATORS and not 0 < accuracy < 1:
         raise ValueError(f"accuracy must lie in (0, 1), got {accuracy!r}")
     if max_step is None:
-        delays = [d for d in (opts.reflex_delay, opts.vestibular_delay) if d > 0]
+        delays = [max(d, MIN_DELAY_STEP) for d in (opts.reflex_delay, opts.vestibular_delay) if d > 0]
         max_step = min(NONSTIFF_MAX_STEP if nonstiff else MAX_STEP, 0.1 / bandwidth, *delays)
     td = build_trunk_diagram(model, opts, signal)
     simulator = Simulator(td.diagram)

@@ -111,11 +111,7 @@ def passenger_preset(args):
 
 def passenger_model(args):
     """The model of the command line's passenger (`--preset`, `--dofs`)."""
-    preset = passenger_preset(args)
-    if getattr(args, "model", None) and args.dofs is None and preset.dofs == "rhythm":
-        raise ValueError(f"preset {preset.name!r} uses the rhythm configuration, which OpenSim models do not have yet: "
-                         "add --dofs sagittal")
-    return preset.model()
+    return passenger_preset(args).model()
 
 
 def passenger_options(args, model) -> dict:

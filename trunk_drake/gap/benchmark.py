@@ -169,7 +169,7 @@ def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers
                              threshold=THRESHOLD, workers=workers)
     top = diagnosis.ranking[0]["effect"] if diagnosis.ranking else None
     left = diagnosis.remainder
-    row = {**_error_row(case, ""), "selected": diagnosis.selected, "ranked_first": top, "verdict": diagnosis.verdict,
+    row = {**_identity(case), "selected": diagnosis.selected, "ranked_first": top, "verdict": diagnosis.verdict,
            "unexplained": not left["is_noise"], "remainder": {k: left[k] for k in ("chi2_per_sample", "ljung_box", "frf")},
            "on_bounds": diagnosis.final["on_bounds"], "steps": diagnosis.steps, "fitted": diagnosis.final["effects"],
            "ranking": [{k: r.get(k) for k in ("effect", "delta_bic", "linear_delta_bic", "values")} for r in diagnosis.ranking],
@@ -189,8 +189,13 @@ def _case_job(model, job):
         return {**_error_row(case, f"{type(err).__name__}: {err}"), "traceback": traceback.format_exc(limit=3)}, None
 
 
+def _identity(case: Case) -> dict:
+    """The fields of a result row that name the case."""
+    return {"case": case.name, "kind": case.kind, "truth": case.truth, "withheld": [list(e) for e in case.effects]}
+
+
 def _error_row(case: Case, message: str) -> dict:
-    return {"case": case.name, "kind": case.kind, "truth": case.truth, "withheld": [list(e) for e in case.effects], "error": message}
+    return {**_identity(case), "error": message}
 
 
 def _observability(model, case: Case, nominal: TrunkOptions, designs, clean, noise_rad: float) -> dict:

@@ -73,8 +73,10 @@ def _short_range_stiffness(options: TrunkOptions, values: dict) -> TrunkOptions:
 
 CATALOGUE: tuple[Effect, ...] = (
     Effect("reflex_delay", "transport delay of the spinal stretch (and Golgi) reflex loop",
-           (Parameter("delay", 0.0, 0.12, 0.02, unit="s"),), _replace(reflex_delay="delay"),
-           "0-120 ms spans short- and long-latency trunk reflexes (modelling choice; see models/reference_values.toml [reflex])"),
+           (Parameter("delay", 0.01, 0.12, 0.02, unit="s"),), _replace(reflex_delay="delay"),
+           "10-120 ms spans short- and long-latency trunk reflexes (modelling choice; see models/reference_values.toml "
+           "[reflex]); the lower bound also bounds the simulations' cost: simulate keeps its maximum step below the "
+           "shortest delay, so a delay fitted towards 0 s would need ever shorter steps"),
     Effect("golgi_feedback", "Golgi tendon organ (autogenic force) feedback",
            (Parameter("gain", 0.0, 1.0, 0.05, unit="excitation per F_max"),), _replace(gto_gain="gain"),
            "inhibitory force feedback on each muscle's own force change; gain bound is a modelling choice"),

@@ -12,14 +12,15 @@ from trunk_drake.gap.space import Fit, SearchSpace
 from trunk_drake.gap.trials import half
 from trunk_drake.optim.least_squares import finite_difference_jacobian, levenberg_marquardt
 from trunk_drake.parallel import WorkerPool
-from trunk_drake.simulation import SimulationError, simulate
+from trunk_drake.simulation import SimulationError, differentiable_settings, simulate
 
 DIVERGED = 1e12  # chi-square of a simulation that diverged
 
 
 def simulate_outputs(model, options: TrunkOptions, trial, outputs) -> tuple[np.ndarray, OperatingPoint]:
     """The outputs of one trial's simulation in its steady window (means removed) and the operating point there."""
-    result = simulate(model, duration=trial.duration, perturbation=trial.signal, options=options, log_rate=trial.fs)
+    result = simulate(model, duration=trial.duration, perturbation=trial.signal, options=options, log_rate=trial.fs,
+                      **differentiable_settings(model, options))  # the refits difference these simulations
     columns = [result.lumbar_rotation if o == "lumbar_rotation" else result.coordinate(o) for o in outputs]
     y = np.column_stack(columns)[trial.steady]
     return y - y.mean(axis=0), OperatingPoint.of(result, trial.steady)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from trunk_drake.data import load_toml
+from trunk_drake.model.plant import rhythm_spec
 
 UPPER_BODY_ROOT = "torso"  # MyoTorso lumps thorax, head and neck above L1 into this subtree
 THESIS_COM_ANTERIOR_TO_L4 = 0.091  # m, seed thesis section 3.2.3 (Schmid et al.'s full-body model)
@@ -38,7 +39,8 @@ def model_info(model) -> dict:
     groups = model.groups
     rhythm = None
     if model.coupling is not None:
-        rhythm = {"coordinate": model.coordinates[-1], "driver": spec.rhythm.driver, "source": spec.rhythm.source,
+        source = rhythm_spec(spec)
+        rhythm = {"coordinate": model.coordinates[-1], "driver": source.driver, "source": source.source,
                   "level_shares": dict(zip(model.levels, model.level_matrix[:, -1].tolist())),
                   "routing": {c.name: float(g) for c, g in zip(model.joint_info, model.coupling[:, -1]) if c.name not in model.levels and g}}
     return {
@@ -70,7 +72,7 @@ def format_model_info(info: dict) -> str:
         f"coordinates ({len(info['coordinates'])}): {', '.join(info['coordinates'])}",
         *([f"rhythm ({info['rhythm']['source']}): {info['rhythm']['coordinate']} = sum of the level angles; shares "
            + ", ".join(f"{k} {v:.3f}" for k, v in info['rhythm']['level_shares'].items())
-           + "; routing " + ", ".join(f"{k} {v:+.4f} rad/rad" for k, v in info['rhythm']['routing'].items())] if info.get("rhythm") else []),
+           + "".join(f"; routing {k} {v:+.4f} rad/rad" for k, v in info['rhythm']['routing'].items())] if info.get("rhythm") else []),
         f"muscles: {info['n_muscles']}",
         *(f"  {g:20s} {n:3d}" for g, n in info["muscles_per_group"].items()),
         "absent thesis groups: " + "; ".join(f"{g} ({why})" for g, why in info["absent_thesis_groups"].items()),

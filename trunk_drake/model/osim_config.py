@@ -3,7 +3,8 @@
 A plant coordinate is the displacement of one transform axis (a `JointSpec` of the .osim
 spec) times a sign: for ``"sagittal"`` and ``"spine3d"`` the lumbar levels' rotation axes
 (flexion = rotation about -z of the vertebra, lateral bending about +x, axial rotation about
-+y, the OpenSim lumbar-model axes), for ``"all"`` one axis per unlocked coordinate. The
++y, the OpenSim lumbar-model axes; ``"rhythm"`` couples the flexion axes by the file's couplers,
+`level_rhythm`), for ``"all"`` one axis per unlocked coordinate. The
 model's own coordinate then follows from the axis' (affine) function. Its other coordinates
 are either held (locked, or unrelated to the plant's coordinates: at their default) or follow
 through the file's coordinate couplers; couplers whose dependent coordinate is itself a plant
@@ -62,6 +63,38 @@ def level_axes(spec: ModelSpec, levels: tuple[str, ...], suffixes: tuple[str, ..
                                  f"{j.coordinate}; trunk-drake needs linear level joints")
             out.append(AxisChoice(f"{level}_{suffix}", j, sign * float(np.sign(j.axis[index]))))
     return out
+
+
+def level_rhythm(spec: ModelSpec, levels: list[AxisChoice]) -> tuple[str, np.ndarray]:
+    """The file's lumbar rhythm: (driver coordinate, d level q / d driver per level).
+
+    Each level's coordinate must be the driver itself or follow it through a chain of the file's
+    coordinate couplers, every link linear with zero offset (ValueError naming the first that is not).
+    """
+    drivers, slopes = set(), []
+    for ch in levels:
+        name, (slope, offset) = ch.joint.coordinate, _affine(ch.joint)
+        slope, offset = ch.sign * slope, ch.sign * offset
+        while (cp := next((c for c in spec.couplers if c.dependent == name), None)) is not None:
+            form = cp.function.linear_form()
+            if form is None or abs(cp.scale * form[1]) > 1e-12:
+                raise ValueError(f"coordinate coupler {cp.name!r} ({cp.dependent} from {cp.independent}) is not linear with zero "
+                                 f"offset, so {ch.name} does not follow {cp.independent} in a constant ratio; "
+                                 "dofs='rhythm' needs linear couplers (use dofs='sagittal')")
+            slope, name = slope * cp.scale * form[0], cp.independent
+        if abs(offset) > 1e-12:
+            raise ValueError(f"{ch.name}: transform axis {ch.joint.name} is offset by {offset:g} at {name} = 0; "
+                             "dofs='rhythm' needs level axes through zero")
+        drivers.add(name)
+        slopes.append(slope)
+    if len(drivers) != 1:
+        raise ValueError(f"model {spec.name!r}: the lumbar levels follow {sorted(drivers)} through its coordinate couplers, "
+                         "not one coordinate; dofs='rhythm' needs one (use dofs='sagittal')")
+    slopes = np.array(slopes)
+    if slopes.sum() == 0.0:
+        raise ValueError(f"model {spec.name!r}: its couplers move the lumbar levels by a total of zero per unit of "
+                         f"{drivers.pop()}; dofs='rhythm' cannot scale lumbar_FE to the lumbar flexion")
+    return drivers.pop(), slopes
 
 
 def free_axes(spec: ModelSpec) -> list[AxisChoice]:

@@ -13,6 +13,8 @@ coordinate ``lumbar_FE``, the lumbar flexion (S1-L1, = the sum of the five level
 turns every level and the routing bodies in the fixed proportions of the spec's rhythm
 (`ModelSpec.rhythm`, the constrained source model's couplings). Drake's continuous plant has no
 constraints, so the plant is a `CoupledPlant` simulating the chain in that one coordinate.
+On an OpenSim model the rhythm is the file's: its level flexion axes following one coordinate
+through its linear coordinate couplers (`rhythm_spec`).
 
 ``"all"``: every joint of the spec with its own name and sign (for user and test models).
 
@@ -53,8 +55,8 @@ from pydrake.common.eigen_geometry import AngleAxis, Quaternion
 
 from trunk_drake.model.coupled import CoupledPlant
 from trunk_drake.model.levels import LEVELS
-from trunk_drake.model.osim_config import AxisChoice, SourceCoordinates, free_axes, level_axes
-from trunk_drake.model.spec import ModelSpec
+from trunk_drake.model.osim_config import AxisChoice, SourceCoordinates, free_axes, level_axes, level_rhythm
+from trunk_drake.model.spec import ModelSpec, RhythmSpec
 
 # MyoTorso joint names per level: (flexion-extension, lateral bending, axial rotation)
 _MYOTORSO_LEVEL_JOINTS = {
@@ -144,11 +146,49 @@ def rhythm_coupling(spec: ModelSpec, joints: list[Coordinate]) -> tuple[np.ndarr
     ``lumbar_FE`` is scaled to the sum of the level angles (the lumbar rotation): each level turns
     ``level_ratio / total`` of it; a routing joint turns ``-routing_ratio / total`` of it in its
     source sign (the levels' flexion is minus the source angle). Its range keeps every coupled
-    joint within its own range.
+    joint within its own range. OpenSim models: see `_osim_rhythm_coupling`.
     """
+    if spec.path_semantics == "opensim":
+        return _osim_rhythm_coupling(spec, joints)
     rhythm = _rhythm(spec)
     share = {f"{level}_FE": r / rhythm.total for level, r in zip(LEVELS, rhythm.level_ratios)}
     share.update({j: -r / rhythm.total for j, r in zip(rhythm.routing, rhythm.routing_ratios)})
+    G, coords, rng = _coupling_matrix(joints, share)
+    driver = spec.joint(rhythm.levels[0])
+    coords.append(Coordinate(RHYTHM_COORDINATE, driver.body, "hinge", -np.asarray(driver.axis, float), rhythm.driver,
+                             -rhythm.total, rng))
+    return G, coords
+
+
+def _osim_rhythm_coupling(spec: ModelSpec, joints: list[Coordinate]) -> tuple[np.ndarray, list[Coordinate]]:
+    """`rhythm_coupling` of an OpenSim model (levels as in `rhythm_spec`); ``lumbar_FE`` stands for the
+    first level's transform axis scaled by its share, so the file's driver maps to it. The routing
+    bodies stay followers (trunk_drake.model.osim_config)."""
+    levels = [c for c in joints if c.source_joint is not None]
+    slopes = np.array(rhythm_spec(spec).level_ratios) * [c.sign for c in levels]  # flexion per unit of the driver
+    share = dict(zip((c.name for c in levels), slopes / slopes.sum()))
+    G, coords, rng = _coupling_matrix(joints, share)
+    first = levels[0]
+    coords.append(Coordinate(RHYTHM_COORDINATE, first.body, "hinge", first.axis, first.source_joint,
+                             float(first.sign / share[first.name]), rng))
+    return G, coords
+
+
+def rhythm_spec(spec: ModelSpec) -> RhythmSpec:
+    """The lumbar rhythm of `spec`: `ModelSpec.rhythm`, or for an OpenSim model its level flexion axes
+    following one coordinate through the file's linear couplers (`level_rhythm`; ratios: axis
+    displacement per unit of that coordinate)."""
+    if spec.path_semantics != "opensim":
+        return _rhythm(spec)
+    choices = osim_choices(spec, "rhythm")
+    driver, slopes = level_rhythm(spec, choices)
+    return RhythmSpec(driver, tuple(c.joint.name for c in choices), tuple(float(s * c.sign) for s, c in zip(slopes, choices)),
+                      source=f"coordinate couplers of {spec.name}")
+
+
+def _coupling_matrix(joints: list[Coordinate], share: dict[str, float]):
+    """G for ``pelvis_tx`` (if among `joints`) and one rhythm coordinate turning joint j by ``share[j]``
+    of it, the coordinates before the rhythm's, and the rhythm coordinate's range (every joint in range)."""
     coords = [c for c in joints if c.name == "pelvis_tx"]
     G = np.zeros((len(joints), len(coords) + 1))
     lo, hi = -np.inf, np.inf
@@ -160,10 +200,7 @@ def rhythm_coupling(spec: ModelSpec, joints: list[Coordinate]) -> tuple[np.ndarr
         if share[c.name]:
             bounds = np.asarray(c.range) / share[c.name]
             lo, hi = max(lo, bounds.min()), min(hi, bounds.max())
-    driver = spec.joint(rhythm.levels[0])
-    coords.append(Coordinate(RHYTHM_COORDINATE, driver.body, "hinge", -np.asarray(driver.axis, float), rhythm.driver,
-                             -rhythm.total, (float(lo), float(hi))))
-    return G, coords
+    return G, coords, (float(lo), float(hi))
 
 
 def _pelvis_coordinate(spec: ModelSpec) -> Coordinate:
@@ -174,7 +211,7 @@ def _osim_coordinates(spec: ModelSpec, dofs: str, pelvis_free: bool) -> list[Coo
     """Coordinates of an OpenSim spec: the chosen transform axes (see trunk_drake.model.osim_config)."""
     choices = osim_choices(spec, dofs)
     source = SourceCoordinates(spec, choices)
-    coords = [_pelvis_coordinate(spec)] if dofs == "sagittal" and pelvis_free else []
+    coords = [_pelvis_coordinate(spec)] if dofs in ("sagittal", "rhythm") and pelvis_free else []
     for ch in choices:
         j = ch.joint
         coords.append(Coordinate(ch.name, j.body, j.kind, ch.sign * np.asarray(j.axis, float), j.name, ch.sign,
@@ -186,9 +223,7 @@ def osim_choices(spec: ModelSpec, dofs: str) -> list[AxisChoice]:
     """The transform axes that are the plant coordinates of configuration `dofs` (no pelvis_tx)."""
     if dofs == "all":
         return free_axes(spec)
-    if dofs not in ("sagittal", "spine3d"):
-        raise ValueError(f"configuration {dofs!r} is not available for OpenSim models (yet); use sagittal, spine3d or all")
-    return level_axes(spec, LEVELS, ("FE",) if dofs == "sagittal" else ("FE", "LB", "AR"))
+    return level_axes(spec, LEVELS, ("FE", "LB", "AR") if dofs == "spine3d" else ("FE",))
 
 
 def fixed_joint_values(spec: ModelSpec, coords: list[Coordinate]) -> dict[str, float]:

@@ -133,9 +133,17 @@ class TrunkModel:
         """Muscle path kinematics for a plant context (body poses read from the plant)."""
         R, p = self.body_poses(context)
         if isinstance(self._paths, OsimKinematics):
-            return self._paths.path_state(R, p, self.plant.GetPositions(context), self._joint_frames(), v)
+            q = self.plant.GetPositions(context)
+            state = self._paths.path_state(R, p, self._joint_q(q), self._joint_frames(), None if v is None else self._joint_q(v))
+            if self.coupling is not None:
+                state.moment_arms = state.moment_arms @ self.coupling
+            return state
         axes, origins = self._joint_frames()(R, p)
         return self._joint_paths(R, p, axes, origins, v)
+
+    def _joint_q(self, q) -> np.ndarray:
+        """Positions (or velocities) of the plant's joints: q, or ``coupling @ q`` in the rhythm."""
+        return np.asarray(q, float) if self.coupling is None else self.coupling @ np.asarray(q, float)
 
     def _joint_paths(self, R, p, axes, origins, v) -> PathState:
         """MyoTorso path kinematics from the joints' frames, moment arms and velocities in the coordinates
@@ -162,7 +170,7 @@ class TrunkModel:
 
     def source_coordinates(self, q) -> dict[str, float]:
         """The OpenSim model's own coordinates (its names, signs and units: rad, m) at q."""
-        values = self._osim().coordinate_values(self.check_q(q, check_range=False))
+        values = self._osim().coordinate_values(self._joint_q(self.check_q(q, check_range=False)))
         return dict(zip(self._osim().source.names, map(float, values)))
 
     def q_from_source(self, values: dict[str, float]) -> np.ndarray:
@@ -201,7 +209,7 @@ class TrunkModel:
         """`path_state` without input checks (the per-step path: q and v float arrays of the right size);
         compiled body kinematics where the model has them, else the plant's poses."""
         if self._kinematics is not None:
-            R, p, axes, origins = self._kinematics.frames(q if self.coupling is None else self.coupling @ q)
+            R, p, axes, origins = self._kinematics.frames(self._joint_q(q))
             return self._joint_paths(R, p, axes, origins, v)
         self.plant.SetPositions(self._context, q)
         return self.path_state_from_context(self._context, v)
@@ -252,7 +260,7 @@ class TrunkModel:
         poses = np.array([X.GetAsMatrix34() for X in all_poses])
         R, p = poses[:, :, :3], poses[:, :, 3]
         if isinstance(self._paths, OsimKinematics):
-            R, p = self._paths.repose(R, p, q)
+            R, p = self._paths.repose(R, p, self._joint_q(q))
         index = [int(self.plant.GetBodyByName(b.name).index()) for b in self.spec.bodies]
         mass = np.array([b.mass for b in self.spec.bodies])
         points = np.array([R[i] @ b.com + p[i] for i, b in zip(index, self.spec.bodies)])
@@ -301,7 +309,7 @@ def _build(spec: ModelSpec, dofs: str, pelvis_mass: float | None, pelvis_free: b
     names = [bodies.get_body(BodyIndex(i)).name() for i in range(n_bodies)]
     kinematics = None
     if spec.path_semantics == "opensim":
-        paths = OsimKinematics(spec, coords, names, moves)
+        paths = OsimKinematics(spec, joints, names, moves)
     else:
         paths = MusclePaths(spec, names, [c.kind for c in joints], moves)
         kinematics = TreeKinematics(bodies, [c.name for c in joints])

@@ -28,6 +28,7 @@ import numpy as np
 from pydrake.solvers import Binding, ClarabelSolver, EvaluatorBase, MathematicalProgram
 
 from trunk_drake.data import load_toml
+from trunk_drake.model.plant import rhythm_spec
 from trunk_drake.optim.static import (
     MomentBalance, PointLoad, StaticInfeasibleError, StaticOptimizer, StaticResult, infeasible_error, with_required,
 )
@@ -411,7 +412,7 @@ def describe_configuration(model, options: dict) -> str:
     """How the levels are held in a strength test, in words."""
     tolerance = options.get("deflection_tolerance", 0.0) or 0.0
     if model.coupling is not None:
-        how = f"lumbar rhythm ({model.spec.rhythm.source}): one coordinate, the levels balance together"
+        how = f"lumbar rhythm ({rhythm_spec(model.spec).source}): one coordinate, the levels balance together"
     elif tolerance > 0:
         how = f"independent levels, each may deflect up to {np.degrees(tolerance):g} deg on its bushing"
     else:
