@@ -55,7 +55,7 @@ def test_only_groups_that_move_the_rhythm_are_identifiable(setting):
 
 
 def test_fit_recovers_truth_from_three_starts(setting, tmp_path):
-    """Starts: the default preset's gains, 0.05 on every gain (the thesis' scale, 1/20-1/50 of the default's), a random
+    """Starts: the default preset's gains, 0.05 on every gain (the thesis' scale, below all of the default's), a random
     point. The first and the last reach the noise floor at the same gains; from 0.05 the fit ends in another basin
     (measured: external oblique kp 23 for a truth of 0.14, sacrospinalis kv 0.004 for 0.82, cost 60x the floor),
     which the multi-start discards: it keeps the lowest cost."""
