@@ -11,6 +11,7 @@ from trunk_drake.io.experiment import load_experiment
 from trunk_drake.io.trials import OUTPUT_NAMES
 from trunk_drake.optim.fit import Objective, fit_reflex_gains, settling_target, targets_from_trials, write_fit
 from trunk_drake.optim.gains import GainLayout
+from trunk_drake.presets import load_preset
 from trunk_drake.simulation import load_reflex_gains
 
 REFERENCE = models_dir() / "reference"
@@ -54,13 +55,21 @@ def test_only_groups_that_move_the_rhythm_are_identifiable(setting):
 
 
 def test_fit_recovers_truth_from_three_starts(setting, tmp_path):
+    """Starts: the default preset's gains, 0.05 on every gain (the thesis' scale, below all of the default's), a random
+    point. The first and the last reach the noise floor at the same gains; from 0.05 the fit ends in another basin
+    (measured: external oblique kp 23 for a truth of 0.14, sacrospinalis kv 0.004 for 0.82, cost 60x the floor),
+    which the multi-start discards: it keeps the lowest cost."""
     model, options, targets, truth = setting
     fixed = {k: {g: v for g, v in truth[k].items() if g not in FITTED} for k in ("kp", "kv")}
     result = fit_reflex_gains(model, targets, groups=FITTED, fixed_gains=fixed, options=options, n_starts=3,
-                              workers=2, max_iterations=25, progress=False)
+                              start=load_preset("default").gains(), workers=2, progress=False)
     assert len(result.starts) == 3
-    for start in result.starts:  # every start reaches the noise floor
-        assert start.cost < 1.05 * 0.5 * sum(t.time.size * len(t.outputs) for t in targets), start
+    floor = 0.5 * sum(t.time.size * len(t.outputs) for t in targets)
+    preset_start, _, random_start = result.starts
+    for start in (preset_start, random_start):
+        assert start.cost < 1.05 * floor, start
+    np.testing.assert_allclose(random_start.x, preset_start.x, atol=0.01)  # the same minimum (log10 gains)
+    assert result.cost == min(s.cost for s in result.starts) < 1.05 * floor
     for kind in ("kp", "kv"):
         for group in FITTED:
             value, sd = result.gains[kind][group], result.std[kind][group]
