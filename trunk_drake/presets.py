@@ -84,14 +84,19 @@ class Preset:
                 "settings": {k: {"value": getattr(self, k), "from": self.provenance[k]} for k in SETTINGS}}
 
 
+def preset_names() -> list[str]:
+    """The names of the presets in `models/presets/`."""
+    return sorted(p.stem for p in (models_dir() / "presets").glob("*.toml"))
+
+
 def preset_path(name_or_path: str) -> Path:
     """`models/presets/NAME.toml` for a name, else the path itself."""
     path = Path(name_or_path)
     if path.suffix != ".toml":
         path = models_dir() / "presets" / f"{name_or_path}.toml"
     if not path.is_file():
-        known = sorted(p.stem for p in (models_dir() / "presets").glob("*.toml"))
-        raise FileNotFoundError(f"preset {name_or_path!r} not found (looked for {path}); presets: {known}, or a .toml path")
+        raise FileNotFoundError(f"preset {name_or_path!r} not found (looked for {path}); presets: {preset_names()}, "
+                                "or a .toml path")
     return path
 
 

@@ -7,7 +7,6 @@ parser sets ``func(args) -> exit code``; domain modules expose functions only.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import importlib
 import json
 import pkgutil
@@ -67,9 +66,9 @@ def print_json(data) -> None:
 
 def add_passenger_arguments(p, dofs_choices=("sagittal", "rhythm")) -> None:
     """`--preset` (the passenger configuration, models/presets/) and options overriding single settings
-    of it, shared by the commands that build a trunk diagram; read them back with `passenger_preset`,
-    `passenger_model` and `passenger_options`."""
-    from trunk_drake.presets import DEFAULT_PRESET
+    of it, shared by the commands that build a trunk diagram; read them back with `passenger` (or
+    `passenger_preset`)."""
+    from trunk_drake.presets import DEFAULT_PRESET, preset_names
 
     p.add_argument("--preset", default=DEFAULT_PRESET,
                    help=f"passenger configuration: a name in models/presets ({', '.join(preset_names())}) or a TOML file; "
@@ -88,12 +87,6 @@ def add_passenger_arguments(p, dofs_choices=("sagittal", "rhythm")) -> None:
                    help="short-range stiffness of active muscle (constants: models/reference_values.toml [muscle.srs])")
 
 
-def preset_names() -> list[str]:
-    from trunk_drake.data import models_dir
-
-    return sorted(p.stem for p in (models_dir() / "presets").glob("*.toml"))
-
-
 def passenger_preset(args):
     """The Preset of `--preset` with the single settings given on the command line."""
     from trunk_drake.presets import load_preset
@@ -109,21 +102,17 @@ def passenger_preset(args):
     return preset.with_changes(**changes) if changes else preset
 
 
-def passenger_model(args):
-    """The model of the command line's passenger (`--preset`, `--dofs`)."""
-    return passenger_preset(args).model()
-
-
-def passenger_options(args, model) -> dict:
-    """TrunkOptions fields (and simulate() keywords) of the command line's passenger; the optimiser's
-    warnings (residual moments of the co-activation) as one plain line each."""
+def passenger(args):
+    """(model, TrunkOptions) of the command line's passenger (`--preset`, `--dofs` and single settings), the
+    preset read once; the optimiser's warnings (residual moments of the co-activation) as one plain line each."""
+    preset = passenger_preset(args)
+    model = preset.model()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        options = passenger_preset(args).options(model)
+        options = preset.options(model)
     for warning in caught:
         print(f"warning: {warning.message}", file=sys.stderr)
-    return {f.name: getattr(options, f.name) for f in dataclasses.fields(options)
-            if f.name in ("kp", "kv", "l_desired", "reflex_delay", "feedforward", "stiffness", "damping", "srs")}
+    return model, options
 
 
 def _absolute(gains: str) -> str:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from trunk_drake.commands import add_passenger_arguments, passenger_model, passenger_options, positive, print_json
+from trunk_drake.commands import add_passenger_arguments, passenger, positive, print_json
 
 
 BANDWIDTHS = (1.0, 3.0, 10.0)
@@ -43,10 +43,10 @@ def add_command(sub) -> None:
 def run(args) -> int:
     from trunk_drake.simulation import simulate
 
-    model = passenger_model(args)
+    model, options = passenger(args)
     result = simulate(
         model, duration=args.duration, bandwidth=args.bandwidth, seed=args.seed, lowpass_hz=args.lowpass_hz, tendon=args.tendon,
-        pelvis=args.pelvis, accuracy=args.accuracy, progress=args.progress, **passenger_options(args, model),
+        pelvis=args.pelvis, accuracy=args.accuracy, progress=args.progress, options=options,
     )
     files = result.write(args.out)
     if model.spec.path_semantics == "opensim":  # --model FILE.osim: results OpenSim loads with that file

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from trunk_drake.commands import add_passenger_arguments, passenger_model, passenger_options, print_json
+from trunk_drake.commands import add_passenger_arguments, passenger, print_json
 
 
 def add_command(sub) -> None:
@@ -21,12 +21,10 @@ def run(args) -> int:
     import json
     from pathlib import Path
 
-    from trunk_drake.diagram import TrunkOptions
     from trunk_drake.metadata import json_default
     from trunk_drake.optim.stability import stability
 
-    model = passenger_model(args)
-    options = TrunkOptions(**passenger_options(args, model))
+    model, options = passenger(args)
     result = stability(model, options, critical=not args.no_critical)
     summary = result.summary()
     if args.out:
