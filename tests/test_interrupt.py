@@ -74,8 +74,9 @@ def _check(run: Running, elapsed: float, last_line: str) -> None:
 
 
 def test_simulate_stops_with_one_line(tmp_path):
-    run = Running(["simulate", "--duration", "60", "--progress", "--out", str(tmp_path / "sim")], tmp_path)
-    run.wait_for("1.0/60.0 s")
+    # long enough that the default passenger (real-time factor about 30) is still running when interrupted
+    run = Running(["simulate", "--duration", "900", "--progress", "--out", str(tmp_path / "sim")], tmp_path)
+    run.wait_for("/900.0 s")
     time.sleep(1.0)
     _check(run, run.interrupt(), "interrupted")
 

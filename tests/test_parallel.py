@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from trunk_drake.model.trunk_model import load_model
-from trunk_drake.parallel import WorkerPool
+from trunk_drake.parallel import WorkerPool, caused_by_interrupt
 
 
 @pytest.fixture(scope="module")
@@ -59,3 +59,20 @@ def test_leaving_the_pool_by_an_exception_ends_running_jobs_at_once(sagittal):
                 raise KeyboardInterrupt  # as a Ctrl-C in the parent would
     assert time.perf_counter() - start < 30.0  # model builds included; the 60 s job did not run out
     assert not any(p.is_alive() for p in processes)
+
+
+def _raised_from(cause: BaseException) -> BaseException:
+    try:
+        try:
+            raise cause
+        except BaseException as inner:
+            raise SystemError("returned a result with an exception set") from inner
+    except SystemError as outer:
+        return outer
+
+
+def test_a_ctrl_c_rewrapped_by_native_code_is_still_an_interrupt():
+    assert caused_by_interrupt(KeyboardInterrupt())
+    assert caused_by_interrupt(_raised_from(KeyboardInterrupt()))  # as numba re-raises it inside a kernel call
+    assert not caused_by_interrupt(_raised_from(ValueError("bad input")))
+    assert not caused_by_interrupt(None)

@@ -15,6 +15,7 @@ import warnings
 from pathlib import Path
 
 from trunk_drake.commands import command_modules, plain_warning
+from trunk_drake.parallel import caused_by_interrupt
 
 INTERRUPTED = 130  # exit status of a command stopped by SIGINT (128 + 2)
 
@@ -89,7 +90,9 @@ def main(argv: list[str] | None = None) -> int:
         warnings.showwarning = plain_warning
         try:
             return _run(argv, run)
-        except KeyboardInterrupt:
+        except BaseException as error:
+            if not caused_by_interrupt(error):
+                raise
             print(interrupted_message(run["out"], run["before"], run["resumable"]), file=sys.stderr)
             if argv is None:  # the command line: skip the interpreter's teardown (1-2 s with Drake loaded);
                 sys.stdout.flush()  # the work is abandoned and its files are closed already

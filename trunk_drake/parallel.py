@@ -67,6 +67,18 @@ def _run(fn, recipe: ModelRecipe, job):
         return fn(worker_model(recipe), job)
 
 
+def caused_by_interrupt(error: BaseException | None) -> bool:
+    """True for a Ctrl-C, also when native code (numba, a Drake callback) re-raised it as another
+    exception (SystemError "returned a result with an exception set") with the KeyboardInterrupt as cause."""
+    seen = set()
+    while error is not None and id(error) not in seen:
+        if isinstance(error, KeyboardInterrupt):
+            return True
+        seen.add(id(error))
+        error = error.__cause__ or error.__context__
+    return False
+
+
 class WorkerPool:
     """Runs ``fn(model, job)`` for many jobs: in this process (workers <= 1), on `workers` local
     processes, or on the Dask cluster at `cluster` (e.g. "tcp://host:8786"). Use as a context
@@ -86,7 +98,7 @@ class WorkerPool:
 
     def __exit__(self, kind, error, tb) -> None:
         self.close(terminate=kind is not None)
-        if kind is not None and issubclass(kind, KeyboardInterrupt):  # Ctrl-C: no child process may outlive us
+        if caused_by_interrupt(error):  # Ctrl-C: no child process may outlive us
             for process in multiprocessing.active_children():
                 process.terminate()
                 process.join(timeout=2.0)
