@@ -24,11 +24,15 @@ def add_command(sub) -> None:
     b.set_defaults(func=run, resumable=True)
 
 
+def _line(text: str) -> None:
+    print(text, flush=True)  # one line per finished case, visible at once also when redirected to a file
+
+
 def run(args) -> int:
     from trunk_drake.gap.benchmark import DEFAULT_NOISE_DEG, run_benchmark
 
     summary = run_benchmark(args.out, quick=args.quick, noise_deg=args.noise_deg or DEFAULT_NOISE_DEG,
-                            workers=args.workers, progress=None if args.json else print, cluster=args.cluster,
+                            workers=args.workers, progress=None if args.json else _line, cluster=args.cluster,
                             only=args.case)
     if args.json:
         print(json.dumps({k: v for k, v in summary.items() if k != "rows"}, indent=2, default=str))
