@@ -69,6 +69,21 @@ def test_linearisation_matches_a_small_amplitude_simulation(dofs):
     assert np.max(np.abs(np.abs(ratio) - 1)) < 0.02 and np.degrees(np.max(np.abs(np.angle(ratio)))) < 2.0, ratio
 
 
+def test_one_sided_reflexes_count_with_the_share_of_time_they_engage():
+    """Bussgang: the best linear gain of (x - c)+ for a Gaussian x is P(x > c); statistics averaged over trials."""
+    u = np.full(3, 0.02)
+    op = OperatingPoint(angles=np.zeros(5), a=u, u=u, amplitude=np.full(5, 0.01),
+                        fiber_length=np.array([[1.0, 1.0, 1.0], [0.01, 0.01, 0.0]]),
+                        fiber_velocity=np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]]))
+    share = op.share_above(np.array([1.0, 1.01, 0.99]), fallback=np.zeros(3))
+    assert share == pytest.approx([0.5, 0.158655, 1.0], abs=1e-6)  # at the set point half, 1 SD below 16 %, no spread: a step
+    assert op.share_lengthening() == pytest.approx([0.5, 0.0, 0.0])
+    bare = OperatingPoint(angles=np.zeros(5), a=u, u=u, amplitude=np.full(5, 0.01))
+    assert np.array_equal(bare.share_above(np.ones(3), fallback=np.ones(3)), np.ones(3)) and bare.share_lengthening() == 0.5
+    assert OperatingPoint.mean([op, bare]).fiber_length is None
+    assert OperatingPoint.mean([op, op]).fiber_length == pytest.approx(op.fiber_length)
+
+
 def test_every_candidate_switches_on_in_the_diagram_and_the_linear_model(linearised):
     nominal, lin, lin_seat = linearised
     freqs = np.array([0.3, 1.1, 2.9])

@@ -172,7 +172,7 @@ def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers
     row = {**_identity(case), "selected": diagnosis.selected, "ranked_first": top, "verdict": diagnosis.verdict,
            "unexplained": not left["is_noise"], "remainder": {k: left[k] for k in ("chi2_per_sample", "ljung_box", "frf")},
            "on_bounds": diagnosis.final["on_bounds"], "steps": diagnosis.steps, "fitted": diagnosis.final["effects"],
-           "ranking": [{k: r.get(k) for k in ("effect", "delta_bic", "linear_delta_bic", "values")} for r in diagnosis.ranking],
+           "ranking": [{k: r.get(k) for k in ("effect", "delta_bic", "checked_delta_bic", "linear_delta_bic", "values")} for r in diagnosis.ranking],
            "gap": diagnosis.shrink.get("gap"), "reduction": diagnosis.shrink.get("reduction"),
            "reduction_above_noise": diagnosis.shrink.get("reduction_above_noise"),
            "noise_floor_gap": diagnosis.shrink.get("noise_floor_gap"), **observability,

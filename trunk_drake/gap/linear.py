@@ -11,9 +11,13 @@ of its own excitation), so every frequency needs only an n x n solve (n: the mec
 coordinates, 5 levels in the sagittal configuration, 1 in the rhythm, +1 with a seat). The
 bushings act on the level angles L q (L = `model.level_matrix`), the lumbar rotation is sum(L q).
 
-Kinks are linearised by central differences or their describing function for small
-symmetric oscillation: (v)+ of the velocity reflex and each side of the trunk-in-space
-feedback count half, the activation rate is the mean of the activating and deactivating
+Kinks are linearised statistically where the operating point carries the nominal simulation's
+fiber length and velocity statistics: the length reflex (l_n - l_d)+ and the velocity reflex
+(dl_n)+ each count with the share of time they engage (the gain of the best linear
+approximation of a one-sided law for a Gaussian-like input, Bussgang's theorem; with the set
+point at the neutral length about half); without statistics, the length reflex counts where l_n
+exceeds l_d at the operating point and the velocity reflex half. Each side of the trunk-in-space
+feedback counts half, the activation rate is the mean of the activating and deactivating
 rates, excitations at their lower bound pass only half of a two-sided (Golgi) signal. The
 stiffening bushing law M = -k (dq + c dq^3) is linearised statistically over the operating
 range: 3 c E[dq^2] dq for a Gaussian-like signal about the rest angle.
@@ -29,6 +33,7 @@ import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.special import ndtr
 
 from trunk_drake.diagram import EXTENSOR_GROUPS, FLEXOR_GROUPS, TrunkOptions, _group_mask, build_trunk_diagram
 from trunk_drake.muscle import thelen
@@ -59,18 +64,43 @@ class OperatingPoint:
     a: np.ndarray
     u: np.ndarray
     amplitude: np.ndarray
+    fiber_length: np.ndarray | None = None  # (2, m) mean and SD of l_n: the share of time each length reflex engages
+    fiber_velocity: np.ndarray | None = None  # (2, m) mean and SD of the normalised fiber velocity
 
     @classmethod
     def of(cls, result, window: slice) -> OperatingPoint:
         """The operating point of a simulation (SimulationResult) over the samples `window`."""
         levels = np.column_stack(list(result.levels.values()))[window]
+        ln, vn = result.normalized_fiber_length[window], result.normalized_fiber_velocity[window]
         return cls(levels.mean(axis=0), result.activation[window].mean(axis=0), result.excitation[window].mean(axis=0),
-                   np.sqrt(np.mean(levels**2, axis=0)))
+                   np.sqrt(np.mean(levels**2, axis=0)), np.array([ln.mean(axis=0), ln.std(axis=0)]),
+                   np.array([vn.mean(axis=0), vn.std(axis=0)]))
 
     @classmethod
     def mean(cls, points) -> OperatingPoint:
         """The average of several operating points (e.g. one per trial)."""
-        return cls(*(np.mean([getattr(p, f.name) for p in points], axis=0) for f in dataclasses.fields(cls)))
+        values = ([getattr(p, f.name) for p in points] for f in dataclasses.fields(cls))
+        return cls(*(None if any(v is None for v in vs) else np.mean(vs, axis=0) for vs in values))
+
+    def share_above(self, set_point: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+        """Per muscle, the share of time l_n exceeds `set_point` (Gaussian l_n of the operating point's mean
+        and SD): the gain of the best linear approximation of (l_n - l_d)+ (Bussgang). `fallback` without
+        the statistics."""
+        if self.fiber_length is None:
+            return fallback
+        mean, sd = self.fiber_length
+        return _share_positive(mean - set_point, sd)
+
+    def share_lengthening(self) -> np.ndarray | float:
+        """Per muscle, the share of time the fiber lengthens: the best linear gain of (dl_n)+ (1/2 without statistics)."""
+        return 0.5 if self.fiber_velocity is None else _share_positive(*self.fiber_velocity)
+
+
+def _share_positive(mean, sd) -> np.ndarray:
+    """P(x > 0) for a Gaussian x of `mean` and `sd` (a step where sd = 0)."""
+    mean, sd = np.asarray(mean, float), np.asarray(sd, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(sd > 0, ndtr(mean / np.where(sd > 0, sd, 1.0)), (mean > 0).astype(float))
 
 
 # options the linear model follows by re-linearising once with a step (value: the step), linear in between
@@ -100,7 +130,8 @@ class LinearTrunk:
     df_dq: np.ndarray  # (m, n) tendon force / F_max
     df_dv: np.ndarray
     df_da: np.ndarray  # (m,)
-    stretch_active: np.ndarray  # (m,) l_n above the set point at the operating point
+    stretch_active: np.ndarray  # (m,) share of time l_n is above the set point (OperatingPoint.share_above)
+    lengthening: np.ndarray  # (m,) share of time the fiber lengthens (the velocity reflex' linear gain)
     headroom: np.ndarray  # (m,) 1, or 0.5 where the excitation sits at its lower bound
     extensors: np.ndarray
     flexors: np.ndarray
@@ -133,7 +164,7 @@ class LinearTrunk:
         dvdv -= b["m_inv"] @ (L.T * c_change) @ L
         rate = b["rate"] / options.activation_scale
         reflex_q, vest = self._position_feedback(options, b)
-        stretch_v = (0.5 * options.per_muscle(self.model, options.kv))[:, None] * b["dvn_dv"]
+        stretch_v = (self.lengthening * options.per_muscle(self.model, options.kv))[:, None] * b["dvn_dv"]
         gto = options.gto_gain * self.headroom
         srs = b["m_inv"] @ b["srs_stiffness"] * options.srs.gain if options.srs is not None else None
         for i, f in enumerate(freqs):
@@ -198,7 +229,7 @@ class LinearTrunk:
             w = 1.0 / (1.0 + self.options.gto_gain * self.headroom * self.df_da)  # static activation per feedback
             dq = -np.linalg.solve(self.dvdq + self.dvda @ (w[:, None] * k_q), other.vdot - self.vdot)
             du = k_q @ dq
-            moved = OperatingPoint(self.op.angles + self.levels @ dq, self.op.a + w * du, self.op.u + du, self.op.amplitude)
+            moved = dataclasses.replace(self.op, angles=self.op.angles + self.levels @ dq, a=self.op.a + w * du, u=self.op.u + du)
             other = linearize(self.model, options, moved)
         return {k: (getattr(other, k) - base[k]) / step for k in base}
 
@@ -278,7 +309,8 @@ def linearize(model, options: TrunkOptions, op: OperatingPoint, seat: bool = Fal
         dln_dq=-(kin.cos_pennation / params.optimal_fiber_length)[:, None] * R,
         dvn_dv=-(kin.cos_pennation / (vmax * params.optimal_fiber_length))[:, None] * R,
         df_dq=-(deriv.d_length / f_max)[:, None] * R, df_dv=-(deriv.d_velocity / f_max)[:, None] * R,
-        df_da=deriv.d_activation / f_max, stretch_active=(kin.normalized_fiber_length > l_set).astype(float),
+        df_da=deriv.d_activation / f_max, stretch_active=op.share_above(l_set, (kin.normalized_fiber_length > l_set).astype(float)),
+        lengthening=np.broadcast_to(op.share_lengthening(), (n_m,)).astype(float),
         headroom=np.where(u0 <= options.constants.minimum_activation * (1 + 1e-9), 0.5, 1.0),
         extensors=_group_mask(base, EXTENSOR_GROUPS), flexors=_group_mask(base, FLEXOR_GROUPS),
         model=model, options=options, op=op, srs_stiffness=R.T @ (srs_unit[:, None] * R), vdot=f(x0)[vrows],

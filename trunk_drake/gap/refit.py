@@ -45,9 +45,12 @@ class TimeDomainFitter:
         self.cache: dict = {}
 
     def outputs_of(self, points, effects) -> list:
-        keys = [(tuple(e.name for e in effects), np.asarray(p, float).tobytes()) for p in points]
-        todo = {k: p for k, p in zip(keys, points) if k not in self.cache}
-        jobs = [(self.space.options_for(p, effects), t, self.outputs) for p in todo.values() for t in self.trials]
+        """Each point's simulated outputs (None where a simulation diverged), simulated once and cached;
+        `effects`: one tuple of effects for every point, or a list of one tuple per point."""
+        each = effects if isinstance(effects, list) else [effects] * len(points)
+        keys = [(tuple(e.name for e in fx), np.asarray(p, float).tobytes()) for p, fx in zip(points, each)]
+        todo = {k: (p, fx) for k, p, fx in zip(keys, points, each) if k not in self.cache}
+        jobs = [(self.space.options_for(p, fx), t, self.outputs) for p, fx in todo.values() for t in self.trials]
         sims = self.simulator.map(simulation_job, jobs)
         self.simulations += len(jobs)
         n = len(self.trials)
