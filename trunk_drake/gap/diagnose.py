@@ -18,7 +18,7 @@ Method (the stages are modules of this package):
    change at the excited lines (amplitude-dependent laws linearised over each trial's own
    range), so all candidates are screened in seconds. Every candidate above the threshold is
    then simulated once at its linear fit (near the reflexes' kinks the linear change can be
-   30-60 % off), and the best `refine` of that check are refitted and scored with nonlinear
+   15-65 % off), and the best `refine` of that check are refitted and scored with nonlinear
    simulations; forward selection adds the
    best effect while its own dBIC passes, the selected effects and the gains are refitted
    jointly, and backward steps drop an effect that no longer earns its place.

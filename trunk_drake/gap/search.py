@@ -112,7 +112,7 @@ class _Search:
     def check(self, current: Fit, rows: list[dict]) -> list[dict]:
         """Every screened row above the threshold simulated once (nonlinear) at its linear fit, and the
         rows re-sorted by that checked dBIC: near the reflexes' kinks the linear model's predicted
-        change can be 30-60 % off, enough to misrank candidates, while a simulation at the linearly
+        change can be 15-65 % off (slower activation: about 100 %), enough to misrank candidates, while a simulation at the linearly
         fitted values is exact. The refits then start from simulations already made."""
         checked = [r for r in rows if "linear_fit" in r and r["linear_delta_bic"] > self.settings.threshold]
         outputs = self.fitter.outputs_of([r["linear_fit"].x for r in checked],
