@@ -177,6 +177,9 @@ class WorkerPool:
                     process.terminate()
                 for process in processes:
                     process.join(timeout=2.0)
+                    if process.is_alive():  # SIGTERM not yet acted on (a loaded machine): no worker may outlive the pool
+                        process.kill()
+                        process.join(timeout=2.0)
             self._executor = None
         if self._client is not None:
             self._client.close()
