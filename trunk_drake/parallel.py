@@ -99,9 +99,7 @@ class WorkerPool:
     def __exit__(self, kind, error, tb) -> None:
         self.close(terminate=kind is not None)
         if caused_by_interrupt(error):  # Ctrl-C: no child process may outlive us
-            for process in multiprocessing.active_children():
-                process.terminate()
-                process.join(timeout=2.0)
+            _stop(multiprocessing.active_children())
 
     def map(self, fn, jobs) -> list:
         """Results of all jobs, in order; a worker's exception is raised here."""
@@ -173,17 +171,23 @@ class WorkerPool:
             processes = list((self._executor._processes or {}).values())
             self._executor.shutdown(wait=not terminate, cancel_futures=True)
             if terminate:
-                for process in processes:
-                    process.terminate()
-                for process in processes:
-                    process.join(timeout=2.0)
-                    if process.is_alive():  # SIGTERM not yet acted on (a loaded machine): no worker may outlive the pool
-                        process.kill()
-                        process.join(timeout=2.0)
+                _stop(processes)
             self._executor = None
         if self._client is not None:
             self._client.close()
             self._client = None
+
+
+def _stop(processes) -> None:
+    """Terminate `processes` and wait for them; one still alive 2 s after SIGTERM (a loaded machine) is killed."""
+    processes = list(processes)
+    for process in processes:
+        process.terminate()
+    for process in processes:
+        process.join(timeout=2.0)
+        if process.is_alive():
+            process.kill()
+            process.join(timeout=2.0)
 
 
 def _run_local(fn, key, job):
