@@ -17,9 +17,11 @@ import multiprocessing
 import pickle
 import signal
 import threading
+import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
+from multiprocessing.connection import wait as connection_wait
 
 _MODELS: dict = {}  # per worker process: recipe key -> TrunkModel
 _LOCK = threading.Lock()  # threads of one worker (Dask processes=False) run jobs one at a time
@@ -179,15 +181,27 @@ class WorkerPool:
 
 
 def _stop(processes) -> None:
-    """Terminate `processes` and wait for them; one still alive 2 s after SIGTERM (a loaded machine) is killed."""
+    """Terminate `processes` and wait until they have exited; one still running 2 s after SIGTERM
+    (a loaded machine) is killed. Exit is read from each process's sentinel: `is_alive` reports a
+    process as alive when the executor's own thread has just reaped it."""
     processes = list(processes)
     for process in processes:
         process.terminate()
-    for process in processes:
-        process.join(timeout=2.0)
-        if process.is_alive():
-            process.kill()
-            process.join(timeout=2.0)
+    for process in still_running(processes, timeout=2.0):
+        process.kill()
+    still_running(processes, timeout=5.0)
+
+
+def still_running(processes, timeout: float) -> list:
+    """Those of `processes` that have not exited within `timeout` seconds."""
+    left = {process.sentinel: process for process in processes}
+    deadline = time.monotonic() + timeout
+    while left:
+        for sentinel in connection_wait(list(left), max(deadline - time.monotonic(), 0.0)):
+            del left[sentinel]
+        if time.monotonic() >= deadline:
+            break
+    return list(left.values())
 
 
 def _run_local(fn, key, job):
