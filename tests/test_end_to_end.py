@@ -53,7 +53,13 @@ def test_strength_batch_on_a_small_grid(tmp_path, capsys):
 
 
 def test_gap_benchmark_one_case(tmp_path, capsys):
-    assert main(["gap-benchmark", "--case", "no_effect_0", "--json", "--out", str(tmp_path)]) == 0
+    # short form: two candidates instead of the eleven (3 min instead of 12)
+    assert main(["gap-benchmark", "--case", "no_effect_0", "--candidates", "reflex_delay", "extra_damping",
+                 "--json", "--out", str(tmp_path)]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["cases"] == 1 and summary["failed"] == []
     assert (tmp_path / "cases" / "no_effect_0" / "report.md").exists()
+    assert summary["candidates"] == ["extra_damping", "reflex_delay"]
+    capsys.readouterr()
+    assert main(["gap-benchmark", "--case", "no_effect_0", "--out", str(tmp_path)]) == 2  # would mix two benchmarks
+    assert "candidates: ['extra_damping', 'reflex_delay'] there, None now" in capsys.readouterr().err

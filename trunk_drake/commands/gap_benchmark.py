@@ -6,6 +6,7 @@ import json
 
 from trunk_drake.commands import count, positive
 from trunk_drake.gap.benchmark import CLASSES, cases
+from trunk_drake.gap.catalogue import CATALOGUE
 
 
 def add_command(sub) -> None:
@@ -17,6 +18,9 @@ def add_command(sub) -> None:
     b.add_argument("--case", nargs="+", metavar="NAME", choices=[*CLASSES, *(c.name for c in cases())], default=None,
                    help=f"run only these cases, or every case of these classes ({', '.join(CLASSES)}); "
                         f"cases: {', '.join(c.name for c in cases())}")
+    b.add_argument("--candidates", nargs="+", choices=[e.name for e in CATALOGUE], metavar="EFFECT", default=None,
+                   help="the effects each diagnosis chooses among (default: the whole catalogue); a restricted "
+                        "catalogue is a different benchmark: a folder resumes only with the candidates it began with")
     b.add_argument("--workers", type=count, default=2, help="local processes of each case's diagnosis")
     b.add_argument("--cluster", default=None, metavar="ADDRESS",
                    help="Dask scheduler address, e.g. tcp://host:8786: the cases run in parallel, one per worker")
@@ -33,7 +37,7 @@ def run(args) -> int:
 
     summary = run_benchmark(args.out, quick=args.quick, noise_deg=args.noise_deg or DEFAULT_NOISE_DEG,
                             workers=args.workers, progress=None if args.json else _line, cluster=args.cluster,
-                            only=args.case)
+                            only=args.case, candidates=args.candidates)
     if args.json:
         print(json.dumps({k: v for k, v in summary.items() if k != "rows"}, indent=2, default=str))
     else:

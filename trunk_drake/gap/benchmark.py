@@ -156,8 +156,9 @@ def _lag_kinematics(trials, lag_s: float):
     return out
 
 
-def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers: int):
-    """Simulate the case's truth, diagnose it blind; returns (result row, diagnosis)."""
+def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers: int, candidates=None):
+    """Simulate the case's truth, diagnose it blind (among `candidates`, default the whole
+    catalogue); returns (result row, diagnosis)."""
     designs = [("1hz_a", 1.0, case.seed), ("1hz_b", 1.0, case.seed + 1000), ("3hz", 3.0, case.seed + 2000)]
     start = time.perf_counter()
     truth = truth_options(nominal, case)
@@ -166,7 +167,7 @@ def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers
         clean = _lag_kinematics(clean, case.effects[0][1]["lag_s"])
     observability = _observability(model, case, nominal, designs, clean, noise_rad) if case.effects else {}
     diagnosis = diagnose_gap(model, add_noise(clean, noise_rad, seed=case.seed), nominal, noise=noise_rad,
-                             threshold=THRESHOLD, workers=workers)
+                             candidates=candidates, threshold=THRESHOLD, workers=workers)
     top = diagnosis.ranking[0]["effect"] if diagnosis.ranking else None
     left = diagnosis.remainder
     row = {**_identity(case), "selected": diagnosis.selected, "ranked_first": top, "verdict": diagnosis.verdict,
@@ -182,9 +183,9 @@ def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers
 
 def _case_job(model, job):
     """Worker job: one case, or its error row (a failing case is recorded and the benchmark goes on)."""
-    case, nominal, noise_rad, workers = job
+    case, nominal, noise_rad, workers, candidates = job
     try:
-        return run_case(model, case, nominal, noise_rad, workers)
+        return run_case(model, case, nominal, noise_rad, workers, candidates)
     except Exception as err:  # noqa: BLE001
         return {**_error_row(case, f"{type(err).__name__}: {err}"), "traceback": traceback.format_exc(limit=3)}, None
 
@@ -211,13 +212,17 @@ def _observability(model, case: Case, nominal: TrunkOptions, designs, clean, noi
 
 
 def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE_DEG, workers: int = 2, progress=print,
-                  cluster: str | None = None, only=None) -> dict:
+                  cluster: str | None = None, only=None, candidates=None) -> dict:
     """Run (or resume) every case, or those of `only` (case names or classes: single, pair, outside,
-    none); returns the summary of the cases done so far (also written to summary.json/.md). Locally
+    none); returns the summary of the cases done so far (also written to summary.json/.md). Each
+    diagnosis chooses among `candidates` (effect names; default the whole catalogue). Locally
     the cases run one after another, each diagnosis on `workers` processes; on the Dask cluster at
-    `cluster` the cases run in parallel, one per worker."""
+    `cluster` the cases run in parallel, one per worker. A folder resumes only with the noise and
+    candidates it was started with."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    candidates = sorted(candidates) if candidates else None
+    _check_settings(out / "settings.json", {"noise_deg": noise_deg, "candidates": candidates})
     results_path = out / "results.jsonl"
     done = {}
     if results_path.exists():
@@ -228,7 +233,7 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
     model, nominal = truth_configuration()
     noise = float(np.radians(noise_deg))
     pending = [c for c in all_cases if c.name not in done or "error" in done[c.name]]
-    jobs = [(case, nominal, noise, 1 if cluster else workers) for case in pending]
+    jobs = [(case, nominal, noise, 1 if cluster else workers, candidates) for case in pending]
     with WorkerPool(model, 1, cluster) as pool:
         for finished, (i, result, error) in enumerate(pool.completed(_case_job, jobs), 1):
             case = pending[i]
@@ -242,10 +247,23 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
                 progress(f"[{finished + len(all_cases) - len(pending)}/{len(all_cases)}] {case.name}: " + (row.get("error") or
                          f"claimed {row['selected'] or 'none'}{', unexplained remainder' if row['unexplained'] else ''} "
                          f"({row['wall_time_s']:.0f} s)"))
-    summary = summarize([done[c.name] for c in all_cases if c.name in done], noise_deg)
+    summary = summarize([done[c.name] for c in all_cases if c.name in done], noise_deg, candidates)
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=json_default))
     (out / "summary.md").write_text(summary_markdown(summary))
     return summary
+
+
+def _check_settings(path: Path, settings: dict) -> None:
+    """Write the run's settings, or refuse to resume a folder started with others (its rows would mix)."""
+    if path.exists():
+        before = json.loads(path.read_text())
+        changed = {k: (before.get(k), v) for k, v in settings.items() if before.get(k) != v}
+        if changed:
+            raise ValueError(f"{path.parent} holds a gap benchmark run with other settings ("
+                             + ", ".join(f"{k}: {a} there, {b} now" for k, (a, b) in changed.items())
+                             + "): resume it with those, or give another --out")
+    else:
+        path.write_text(json.dumps(settings, indent=2))
 
 
 def _rate(rows, test):
@@ -253,7 +271,7 @@ def _rate(rows, test):
             "passed": int(sum(bool(test(r)) for r in rows)), "failed": [r["case"] for r in rows if not test(r)]}
 
 
-def summarize(rows: list[dict], noise_deg: float) -> dict:
+def summarize(rows: list[dict], noise_deg: float, candidates=None) -> dict:
     """Per-class rates against the targets (only observable withheld changes count in the rates)."""
     ok = [r for r in rows if "error" not in r]
     unobservable = [r["case"] for r in ok if r["kind"] != "none" and not r.get("observable", True)]
@@ -272,7 +290,7 @@ def summarize(rows: list[dict], noise_deg: float) -> dict:
         "noise_verdict_when_complete": _rate(complete, lambda r: not r["unexplained"]),
     }
     return {
-        "noise_deg": noise_deg, "cases": len(rows), "failed": [r["case"] for r in rows if "error" in r],
+        "noise_deg": noise_deg, "candidates": candidates or "catalogue", "cases": len(rows), "failed": [r["case"] for r in rows if "error" in r],
         "unobservable": unobservable, "measures": measures,
         "gap_reduction_above_noise": {"median": float(np.median(reductions)) if reductions else None,
                                       "min": float(np.min(reductions)) if reductions else None,
@@ -295,7 +313,9 @@ _LABELS = {"single_ranked_first": "single catalogued effect ranked first",
 
 def summary_markdown(s: dict) -> str:
     g = s["gap_reduction_above_noise"]
-    lines = ["# Gap benchmark", "", f"Noise {s['noise_deg']} deg, {s['cases']} cases ({len(s['failed'])} failed"
+    candidates = s.get("candidates", "catalogue")
+    among = "the whole catalogue" if candidates == "catalogue" else ", ".join(candidates)
+    lines = ["# Gap benchmark", "", f"Noise {s['noise_deg']} deg, candidates: {among}; {s['cases']} cases ({len(s['failed'])} failed"
              + (f": {', '.join(s['failed'])}" if s["failed"] else "") + "); unobservable withheld changes (left out of the "
              f"rates): {', '.join(s['unobservable']) or 'none'}.", "",
              "| measure | measured | target | failing cases |", "|---|---|---|---|"]
