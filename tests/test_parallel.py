@@ -76,3 +76,14 @@ def test_a_ctrl_c_rewrapped_by_native_code_is_still_an_interrupt():
     assert caused_by_interrupt(_raised_from(KeyboardInterrupt()))  # as numba re-raises it inside a kernel call
     assert not caused_by_interrupt(_raised_from(ValueError("bad input")))
     assert not caused_by_interrupt(None)
+
+
+def test_an_unraisable_interrupt_is_quiet_and_other_errors_are_reported():
+    from types import SimpleNamespace
+
+    from trunk_drake.cli import _quiet_interrupts
+
+    reported = []
+    for error in (KeyboardInterrupt(), _raised_from(KeyboardInterrupt()), _raised_from(ValueError("bad input"))):
+        _quiet_interrupts(SimpleNamespace(exc_type=type(error), exc_value=error), report=reported.append)
+    assert [str(u.exc_value) for u in reported] == ["returned a result with an exception set"]

@@ -77,9 +77,9 @@ def interrupted_message(out: Path | None, before: dict, resumable: bool) -> str:
 
 
 def _quiet_interrupts(unraisable, report=sys.unraisablehook) -> None:
-    """sys.unraisablehook: a Ctrl-C caught inside native code (numba, a Drake callback) is no
-    traceback for the user; main() reports the interruption."""
-    if not issubclass(unraisable.exc_type, KeyboardInterrupt):
+    """sys.unraisablehook: a Ctrl-C caught inside native code (numba, a Drake callback), bare or
+    re-wrapped by it, is no traceback for the user; main() reports the interruption."""
+    if not caused_by_interrupt(unraisable.exc_value):
         report(unraisable)
 
 

@@ -99,8 +99,7 @@ class OperatingPoint:
 def _share_positive(mean, sd) -> np.ndarray:
     """P(x > 0) for a Gaussian x of `mean` and `sd` (a step where sd = 0)."""
     mean, sd = np.asarray(mean, float), np.asarray(sd, float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(sd > 0, ndtr(mean / np.where(sd > 0, sd, 1.0)), (mean > 0).astype(float))
+    return np.where(sd > 0, ndtr(mean / np.where(sd > 0, sd, 1.0)), (mean > 0).astype(float))
 
 
 # options the linear model follows by re-linearising once with a step (value: the step), linear in between
