@@ -47,7 +47,7 @@ def main():
                                   max_iterations=args.max_iterations, workers=2, progress=args.progress)
     floor = 0.5 * sum(t.time.size * len(t.outputs) for t in targets)
     layout = GainLayout.for_groups(model.groups)
-    r_truth, _ = Objective(model, targets, layout, options)(layout.vector(truth))  # the minimum lies at or below
+    r_truth, _, _ = Objective(model, targets, layout, options)(layout.vector(truth))  # the minimum lies at or below
     z = error_in_sd(result.gains, result.std, truth)
     identifiable = {f"{k}.{g}": (k, g) for k in ("kp", "kv") for g in result.gains[k] if result.std[k][g] < 0.5 * result.gains[k][g]}
     out = {

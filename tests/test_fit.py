@@ -31,7 +31,7 @@ def setting():
 def test_cost_at_truth_is_the_noise_floor(setting):
     model, options, targets, truth = setting
     layout = GainLayout.for_groups(model.groups)
-    r, engaged = Objective(model, targets, layout, options)(layout.vector(truth))
+    r, engaged, _ = Objective(model, targets, layout, options)(layout.vector(truth))
     expected = 0.5 * r.size  # chi-square: one per sample and output at the truth
     assert abs(0.5 * r @ r - expected) < 0.1 * expected
     assert engaged.all(), "with the set point at the neutral length every length reflex is at its threshold at rest"
@@ -46,7 +46,7 @@ def test_only_groups_that_move_the_rhythm_are_identifiable(setting):
     x = layout.vector(truth)
 
     def cost(changes):
-        r, _ = objective(x + np.log10(2.0) * np.isin(layout.names, changes))
+        r, _, _ = objective(x + np.log10(2.0) * np.isin(layout.names, changes))
         return 0.5 * r @ r
 
     at_truth = cost([])

@@ -229,8 +229,8 @@ def test_fit_objective_on_the_rhythm_is_the_noise_floor_at_the_truth():
     trials = synthetic_trials(model, truth, [("rhythm", 1.0, 4)], noise, seed=5, period=10.0)
     targets = targets_from_trials(trials, OUTPUT_NAMES, noise, period=10.0)
     layout = GainLayout.for_groups(model.groups)
-    r, _ = Objective(model, targets, layout, truth)(layout.vector({"kp": truth.kp, "kv": truth.kv}))
+    r, _, _ = Objective(model, targets, layout, truth)(layout.vector({"kp": truth.kp, "kv": truth.kv}))
     assert abs(r @ r / r.size - 1.0) < 0.1, r @ r / r.size
     wrong = layout.vector({"kp": truth.kp, "kv": {g: 3 * v for g, v in truth.kv.items()}})
-    r_wrong, _ = Objective(model, targets, layout, truth)(wrong)
+    r_wrong, _, _ = Objective(model, targets, layout, truth)(wrong)
     assert r_wrong @ r_wrong > 1.2 * (r @ r), ("the gains must matter", r_wrong @ r_wrong / r.size)  # chi2 SD: 1.5 % of r.size

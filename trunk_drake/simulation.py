@@ -24,8 +24,10 @@ NONSTIFF_INTEGRATOR = "runge_kutta3"  # the rhythm with rigid tendons: no verteb
 NONSTIFF_ACCURACY = 1e-3
 NONSTIFF_MAX_STEP = 0.025  # s; 20 s main job: 2649 evaluations and 0.0014 deg RMS from the 1e-6 reference
 #   (radau3 at its settings: 16,305 and 0.0026 deg; benchmarks/simulate.py)
-FIXED_STEP = 0.005  # s, runge_kutta2 steps of `differentiable_settings`: the reference data's chi-square at the truth
-#   as with runge_kutta3 at 1e-3 (7235.8 vs 7235.7 for one trial), finite differences as smooth as radau3's
+SEQUENCE_ACCURACY = 1e-4  # runge_kutta3's accuracy for the step sequences the fits replay. Reflex-gain finite-difference
+#   columns on it against those on a 1e-6 sequence (benchmarks/differentiable_steps.py): within 2 %, except psoas at
+#   11 % at 1 Hz (a column near zero: psoas barely moves the rhythm); at 3e-4 and 1e-3 up to 100 % and 1000 % off.
+#   Per 24 s trial: 1343 steps at 1 Hz, 3210 at 3 Hz; runge_kutta2 at 5 ms (within 1 %) takes 2.7x and 1.4x the time
 MIN_DELAY_STEP = 1e-3  # s: a shorter delay does not shorten the steps further (held within one step, it lags < 1 ms)
 DEFAULT_LOG_RATE = 100.0  # Hz, uniform output grid (step-wise logs are resampled onto it)
 FIXED_STEP_INTEGRATORS = ("explicit_euler", "semi_explicit_euler", "runge_kutta2")
@@ -60,6 +62,7 @@ class SimulationResult:
     options: dict
     metadata: dict = field(default_factory=dict)
     levels: dict = field(default_factory=dict)  # level angle (rad) by name, L5_S1_FE ... L1_L2_FE (any configuration)
+    step_times: np.ndarray | None = None  # s, 0 and the end of every integrator step: `simulate(steps=...)` replays them
 
     @property
     def sim_time_s(self) -> float:
@@ -207,22 +210,26 @@ def default_integrator(model, options: TrunkOptions) -> str:
     return NONSTIFF_INTEGRATOR if model.coupling is not None and options.tendon == "rigid" else STIFF_INTEGRATOR
 
 
-def differentiable_settings(model, options: TrunkOptions) -> dict:
+def differentiable_settings(model, options: TrunkOptions, steps: np.ndarray | None = None) -> dict:
     """`simulate` keywords for simulations that are differentiated by finite differences (the fits): the result must
-    be a smooth function of the parameters. An error-controlled step sequence changes with them, and its error then
-    enters the Jacobian as information the data do not hold (runge_kutta3 at 1e-3 on the reference data: the columns
-    of the psoas gains 100-500x their size, their standard deviations as much too small). Where `default_integrator`
-    is runge_kutta3: fixed runge_kutta2 steps of `FIXED_STEP`; radau3 already runs at its maximum step, which binds."""
-    if default_integrator(model, options) == NONSTIFF_INTEGRATOR:
-        return {"integrator": "runge_kutta2", "max_step": FIXED_STEP}
-    return {}
+    be a smooth function of the parameters. An error-controlled step sequence changes with them, and its switching
+    then enters the Jacobian as information the data do not hold (runge_kutta3 at 1e-3 on the reference data: the
+    columns of the psoas gains 100-500x their size). Where `default_integrator` is runge_kutta3, a fit therefore
+    simulates its base point with error control at `SEQUENCE_ACCURACY` (`steps` None) and every finite-difference
+    point around it on that run's step sequence (`steps`: its `step_times`); radau3 already runs at its maximum
+    step, which binds, and ignores `steps`."""
+    if default_integrator(model, options) != NONSTIFF_INTEGRATOR:
+        return {}
+    if steps is None:
+        return {"integrator": NONSTIFF_INTEGRATOR, "accuracy": SEQUENCE_ACCURACY}
+    return {"integrator": NONSTIFF_INTEGRATOR, "steps": steps}
 
 
 def simulate(model, duration: float | None = None, perturbation="multisine", bandwidth: float = 1.0, seed: int = 0,
              lowpass_hz: float | None = None,
              options: TrunkOptions | None = None, integrator: str | None = None, accuracy: float | None = None,
              log_rate: float = DEFAULT_LOG_RATE, max_step: float | None = None, progress: bool = False,
-             **option_overrides) -> SimulationResult:
+             steps: np.ndarray | None = None, **option_overrides) -> SimulationResult:
     """Simulate the trunk model (pelvis perturbation, muscles, reflexes, bushings).
 
     `perturbation`: "multisine" (default: 20 s period, 0.2 Hz to `bandwidth` Hz, 2 s fades,
@@ -232,7 +239,11 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
     histories are resampled (shape-preserving cubic, as the thesis did) onto a uniform grid
     of `log_rate` Hz. `integrator` defaults to `default_integrator`; `accuracy` and `max_step` to
     that integrator's (radau3: 1e-2, 12.5 ms; runge_kutta3: 1e-3, 25 ms), the step also at most
-    1 / (10 * bandwidth) and the shortest reflex delay. Other keyword arguments override fields of `TrunkOptions` (e.g. ``kp=0.2, tendon="compliant"``).
+    1 / (10 * bandwidth) and the shortest reflex delay. `steps` (a previous run's `step_times`) replays
+    that run's step sequence with the same integrator, error control off: finite differences
+    between runs on one sequence are smooth, where each run's own error-controlled sequence would
+    add its switching to the difference. Other keyword arguments override fields of
+    `TrunkOptions` (e.g. ``kp=0.2, tendon="compliant"``).
     """
     opts = dataclasses.replace(options or TrunkOptions(), **option_overrides)
     integrator = integrator or default_integrator(model, opts)
@@ -248,14 +259,19 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
         raise ValueError(f"log_rate must be positive (Hz), got {log_rate!r}")
     if integrator not in FIXED_STEP_INTEGRATORS and not 0 < accuracy < 1:
         raise ValueError(f"accuracy must lie in (0, 1), got {accuracy!r}")
-    if max_step is None:
+    if steps is not None:
+        steps = _replayable(steps, duration)
+        max_step = 1.001 * float(np.max(np.diff(steps)))  # every replayed step within it: one step per boundary
+    elif max_step is None:
         delays = [max(d, MIN_DELAY_STEP) for d in (opts.reflex_delay, opts.vestibular_delay) if d > 0]
         max_step = min(NONSTIFF_MAX_STEP if nonstiff else MAX_STEP, 0.1 / bandwidth, *delays)
     td = build_trunk_diagram(model, opts, signal)
     simulator = Simulator(td.diagram)
     ResetIntegratorFromFlags(simulator, integrator, max_step)
     integ = simulator.get_mutable_integrator()
-    if integrator not in FIXED_STEP_INTEGRATORS:
+    if steps is not None:
+        integ.set_fixed_step_mode(True)
+    elif integrator not in FIXED_STEP_INTEGRATORS:
         integ.set_target_accuracy(accuracy)
     _set_initial_muscle_state(td, simulator.get_mutable_context())
     simulator.set_monitor(_monitor(td))
@@ -263,11 +279,24 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
     wall = _time.perf_counter()
     try:
         simulator.Initialize()
-        _advance(simulator, duration, progress)
+        if steps is None:
+            _advance(simulator, duration, progress)
+        else:
+            for t in steps[1:]:
+                simulator.AdvanceTo(t)
     except RuntimeError as err:
         raise SimulationError(str(err)) from None
     wall = _time.perf_counter() - wall
     return _collect(td, simulator, wall, integrator, accuracy, signal, seed, bandwidth, duration, log_rate)
+
+
+def _replayable(steps, duration: float) -> np.ndarray:
+    """`steps` checked as a step sequence of a run of `duration`: increasing times from 0 to it."""
+    steps = np.asarray(steps, float)
+    if steps.ndim != 1 or steps.size < 2 or steps[0] != 0.0 or np.any(np.diff(steps) <= 0) or abs(steps[-1] - duration) > 1e-9:
+        raise ValueError(f"steps must be increasing times from 0 to the duration ({duration} s), as a previous run's "
+                         f"step_times; got {steps.size} times from {steps[:1]} to {steps[-1:]}")
+    return steps
 
 
 def _set_initial_muscle_state(td: TrunkDiagram, root_context) -> None:
@@ -317,6 +346,7 @@ def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, se
     for name, sink in td.loggers.items():
         log = sink.FindLog(ctx)
         logs[name] = resample_pchip(log.sample_times(), log.data().T, t, drop_duplicates=True)
+    step_times = np.unique(td.loggers["state"].FindLog(ctx).sample_times())
     x = logs["state"]
     nq = td.plant.num_positions()
     q, v = x[:, :nq], x[:, nq:]
@@ -345,7 +375,7 @@ def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, se
         activation=logs["activation"], excitation=logs["excitation"], muscle_force=logs["tendon_force"],
         normalized_fiber_length=logs["normalized_fiber_length"], normalized_fiber_velocity=logs["normalized_fiber_velocity"],
         fiber_length=logs["fiber_length"],
-        platform=platform, stats=stats, wall_time_s=wall, options=opts, levels=levels,
+        platform=platform, stats=stats, wall_time_s=wall, options=opts, levels=levels, step_times=step_times,
         metadata=run_metadata(td.model, seed=seed, bandwidth=bandwidth, perturbation=getattr(signal, "to_dict", lambda: None)()),
     )
 

@@ -95,7 +95,7 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
         say(f"{len(data)} trials, noise {np.round(np.degrees(noise), 3).tolist()} deg; simulating the nominal model")
     settings = Settings(threshold, max_effects, refine)
     with WorkerPool(model, workers) as simulator:
-        results = simulator.map(simulation_job, [(options, t, outputs) for t in data])
+        results = simulator.map(simulation_job, [(options, t, outputs, None) for t in data])
         for t, r in zip(data, results):
             if isinstance(r, Exception):
                 raise ValueError(f"the nominal model diverges on {t.name}: {r}")
@@ -106,7 +106,7 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
         fitter = TimeDomainFitter(simulator, space, data, noise, outputs)
         if say:
             say(f"linearised; {space.rank} identifiable gain directions; screening {len(candidates)} candidates")
-        found = search_effects(space, screen, fitter, candidates, settings, nominal, say)
+        found = search_effects(space, screen, fitter, candidates, settings, nominal, [r[2] for r in results], say)
     found.scores.update(nominal_heldout_chi2=sum(segment_chi2(t.steady_outputs, n, noise, half(t, "test"))
                                                  for t, n in zip(data, nominal)),
                         simulations=fitter.simulations + len(data))

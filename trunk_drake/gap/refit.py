@@ -17,51 +17,61 @@ from trunk_drake.simulation import SimulationError, differentiable_settings, sim
 DIVERGED = 1e12  # chi-square of a simulation that diverged
 
 
-def simulate_outputs(model, options: TrunkOptions, trial, outputs) -> tuple[np.ndarray, OperatingPoint]:
-    """The outputs of one trial's simulation in its steady window (means removed) and the operating point there."""
+def simulate_outputs(model, options: TrunkOptions, trial, outputs, steps=None) -> tuple[np.ndarray, OperatingPoint, np.ndarray]:
+    """The outputs of one trial's simulation in its steady window (means removed), the operating point
+    there and the run's step times; on the step sequence `steps` of an earlier run if given."""
     result = simulate(model, duration=trial.duration, perturbation=trial.signal, options=options, log_rate=trial.fs,
-                      **differentiable_settings(model, options))  # the refits difference these simulations
+                      **differentiable_settings(model, options, steps))  # the refits difference these simulations
     columns = [result.lumbar_rotation if o == "lumbar_rotation" else result.coordinate(o) for o in outputs]
     y = np.column_stack(columns)[trial.steady]
-    return y - y.mean(axis=0), OperatingPoint.of(result, trial.steady)
+    return y - y.mean(axis=0), OperatingPoint.of(result, trial.steady), result.step_times
 
 
 def simulation_job(model, job):
-    """Worker job: one trial's outputs and operating point, or the SimulationError of a diverging run."""
-    options, trial, outputs = job
+    """Worker job (options, trial, outputs, steps or None): `simulate_outputs`, or the SimulationError of a diverging run."""
+    options, trial, outputs, steps = job
     try:
-        return simulate_outputs(model, options, trial, outputs)
+        return simulate_outputs(model, options, trial, outputs, steps)
     except SimulationError as err:
         return err
 
 
 class TimeDomainFitter:
     """Refit and score models with full nonlinear simulations (first halves train, second test) on
-    the worker pool `simulator`: secant Levenberg-Marquardt over the `free` coordinates of x (others held)."""
+    the worker pool `simulator`: secant Levenberg-Marquardt over the `free` coordinates of x (others
+    held). A fit simulates every point on the step sequences of its start's own run
+    (`differentiable_settings`), so its finite differences are smooth."""
 
     def __init__(self, simulator: WorkerPool, space: SearchSpace, trials, noise, outputs):
         self.simulator, self.space, self.trials, self.noise, self.outputs = simulator, space, trials, noise, outputs
         self.simulations = 0
-        self.cache: dict = {}
+        self.cache: dict = {}  # (effect names, x, key of the run whose steps are replayed or None) -> (outputs, steps)
 
-    def outputs_of(self, points, effects) -> list:
+    @staticmethod
+    def key(x, effects, on=None) -> tuple:
+        return tuple(e.name for e in effects), np.asarray(x, float).tobytes(), on
+
+    def outputs_of(self, points, effects, on=None) -> list:
         """Each point's simulated outputs (None where a simulation diverged), simulated once and cached;
-        `effects`: one tuple of effects for every point, or a list of one tuple per point."""
+        `effects`: one tuple of effects for every point, or a list of one tuple per point; `on`: the
+        key of a run whose step sequences the simulations replay (None: each its own)."""
         each = effects if isinstance(effects, list) else [effects] * len(points)
-        keys = [(tuple(e.name for e in fx), np.asarray(p, float).tobytes()) for p, fx in zip(points, each)]
+        keys = [self.key(p, fx, on) for p, fx in zip(points, each)]
         todo = {k: (p, fx) for k, p, fx in zip(keys, points, each) if k not in self.cache}
-        jobs = [(self.space.options_for(p, fx), t, self.outputs) for p, fx in todo.values() for t in self.trials]
+        steps = self.cache[on][1] if on is not None else [None] * len(self.trials)
+        jobs = [(self.space.options_for(p, fx), t, self.outputs, s) for p, fx in todo.values() for t, s in zip(self.trials, steps)]
         sims = self.simulator.map(simulation_job, jobs)
         self.simulations += len(jobs)
         n = len(self.trials)
         for i, k in enumerate(todo):
             chunk = sims[i * n:(i + 1) * n]
-            self.cache[k] = None if any(isinstance(c, Exception) for c in chunk) else [c[0] for c in chunk]
-        return [self.cache[k] for k in keys]
+            diverged = any(isinstance(c, Exception) for c in chunk)
+            self.cache[k] = (None, None) if diverged else ([c[0] for c in chunk], [c[2] for c in chunk])
+        return [self.cache[k][0] for k in keys]
 
-    def seed(self, x, effects, outputs) -> None:
-        """Register an existing simulation (e.g. the nominal one) for parameter vector x."""
-        self.cache[(tuple(e.name for e in effects), np.asarray(x, float).tobytes())] = outputs
+    def seed(self, x, effects, outputs, steps) -> None:
+        """Register an existing simulation (e.g. the nominal one) for parameter vector x: outputs and step times per trial."""
+        self.cache[self.key(x, effects)] = (outputs, steps)
 
     def chi2(self, outputs, which: str) -> float:
         if outputs is None:
@@ -88,12 +98,16 @@ class TimeDomainFitter:
             x[free] = z
             return x
 
+        own = self.key(x_full, effects)
+        self.outputs_of([x_full], effects)
+        on = own if self.cache[own][0] is not None else None  # a diverging start: each point on its own steps
+
         def fun(z):
-            return self.residual(self.outputs_of([expand(z)], effects)[0])
+            return self.residual(self.outputs_of([expand(z)], effects, on)[0])
 
         def jac(z):
             return finite_difference_jacobian(
-                lambda points: [self.residual(o) for o in self.outputs_of([expand(p) for p in points], effects)],
+                lambda points: [self.residual(o) for o in self.outputs_of([expand(p) for p in points], effects, on)],
                 z, 0.02 * (hi[free] - lo[free]), upper=hi[free], r0=fun(z))
 
         z = x_full[free]
@@ -101,6 +115,6 @@ class TimeDomainFitter:
             z, *_ = levenberg_marquardt(fun, jac, z, lo[free], hi[free], max_iterations=max_iterations, tolerance=1e-3,
                                         refresh_every=max_iterations + 1)
         x = expand(z)
-        outputs = self.outputs_of([x], effects)[0]
+        outputs = self.outputs_of([x], effects, on)[0]
         return Fit(tuple(e.name for e in effects), x, self.chi2(outputs, "train"), self.chi2(outputs, "test"),
                    {e.name: v for e, v in zip(effects, self.space.values(x, effects))}, outputs)

@@ -163,12 +163,12 @@ class _Search:
 
 
 def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainFitter, candidates, settings: Settings,
-                   nominal, progress=None) -> SearchResult:
-    """The gains-only refit, every candidate alone against it (the ranking), then forward and
-    backward selection on each effect's own held-out dBIC (see the module docstring)."""
+                   nominal, nominal_steps, progress=None) -> SearchResult:
+    """The gains-only refit from the `nominal` outputs (simulated on `nominal_steps`, per trial), every
+    candidate alone against it (the ranking), then forward and backward selection on each effect's own held-out dBIC (see the module docstring)."""
     s = _Search(space, screen, fitter, candidates, settings, progress)
     rank = space.rank
-    fitter.seed(np.zeros(rank), (), nominal)
+    fitter.seed(np.zeros(rank), (), nominal, nominal_steps)
     base = s.regain(fitter.fit((), np.zeros(rank), np.arange(rank), max_iterations=3))
     s.say(f"refitted the nominal gains: held-out chi2 {base.heldout_chi2:.0f}")
     ranking = s.screen_additions(base, list(s.candidates))

@@ -59,11 +59,15 @@ class Objective:
 
     def __init__(self, model, targets: list[PreparedTrial], layout: GainLayout, options: TrunkOptions, accuracy: float | None = None):
         self.model, self.targets, self.layout, self.options, self.accuracy = model, targets, layout, options, accuracy
-        self.integration = differentiable_settings(model, options)  # finite differences need smooth simulations
 
-    def simulate(self, x, target: PreparedTrial):
+    def simulate(self, x, target: PreparedTrial, steps=None):
+        """One target's simulation at x; on the step sequence `steps` of an earlier run if given (finite
+        differences need smooth simulations: `differentiable_settings`)."""
+        settings = differentiable_settings(self.model, self.options, steps)
+        if self.accuracy is not None and "steps" not in settings:
+            settings["accuracy"] = self.accuracy
         return simulate(self.model, duration=float(target.time[-1]), perturbation=target.signal, options=self.options,
-                        log_rate=target.fs, accuracy=self.accuracy, **self.integration, **self.layout.gains(x))
+                        log_rate=target.fs, **settings, **self.layout.gains(x))
 
     def outputs(self, result, target: PreparedTrial) -> dict[str, np.ndarray]:
         out = {}
@@ -73,21 +77,24 @@ class Objective:
             out[name] = series - series[0]
         return out
 
-    def __call__(self, x) -> tuple[np.ndarray, np.ndarray]:
-        """Residuals, and per kp parameter whether its length reflex ever engaged.
+    def __call__(self, x, steps=None) -> tuple[np.ndarray, np.ndarray, list]:
+        """Residuals, per kp parameter whether its length reflex ever engaged, and per target the
+        run's step times (None where it diverged); on the step sequences `steps` (per target) if given.
 
         A group whose fibers never exceed the set point l_d has (l_n - l_d)+ = 0 throughout:
         its kp has no effect near x, so its Jacobian column is exactly zero.
         """
-        parts, engaged = [], np.zeros(len(self.layout.groups), dtype=bool)
+        parts, engaged, step_times = [], np.zeros(len(self.layout.groups), dtype=bool), []
         members = self.layout.members(self.model)
-        for target in self.targets:
+        for target, on in zip(self.targets, steps or [None] * len(self.targets)):
             try:
-                result = self.simulate(x, target)
+                result = self.simulate(x, target, on)
             except SimulationError:  # an unstable gain set: a large, finite residual keeps the search going
                 model_out = {n: np.full_like(target.time, np.radians(90.0)) for n in target.outputs}
                 engaged[:] = True
+                step_times.append(None)
             else:
+                step_times.append(result.step_times)
                 model_out = self.outputs(result, target)
                 stretch = result.normalized_fiber_length.max(axis=0) - self.options.per_muscle(self.model, self.options.l_desired) \
                     if not isinstance(self.options.l_desired, str) else np.ones(self.model.n_muscles)
@@ -95,13 +102,13 @@ class Objective:
             for name, measured in target.outputs.items():
                 difference = model_out[name] - measured
                 parts.append((difference - difference.mean()) / target.noise[name])  # offset fitted in closed form
-        return np.concatenate(parts), engaged
+        return np.concatenate(parts), engaged, step_times
 
 
 def _evaluate(model, job):
-    """Worker job: the residuals at x of the objective (targets, layout, options, accuracy)."""
-    x, problem = job
-    return Objective(model, *problem)(x)
+    """Worker job: the objective (targets, layout, options, accuracy) at x, on the step sequences `steps` if given."""
+    x, problem, steps = job
+    return Objective(model, *problem)(x, steps)
 
 
 @dataclass
@@ -185,36 +192,43 @@ def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_
     lo, hi = np.log10(GAIN_BOUNDS)
     history: list[dict] = []
     wall = _time.perf_counter()
-    cache: dict[bytes, np.ndarray] = {}
+    cache: dict[tuple, tuple] = {}  # (x, x of the run whose steps are replayed or None) -> (residuals, engaged, steps)
     counter = {"simulations": 0}
 
     problem = (targets, layout, options, accuracy)
     pool = WorkerPool(model, workers)
 
-    def evaluate_many(points, what="cost"):
-        todo = [p for p in points if p.tobytes() not in cache]
+    def evaluate_many(points, what="cost", on=None):
+        """Each point's (residuals, engaged, step times), simulated once; `on`: the cache key of a run whose
+        step sequences are replayed (None: each point on its own)."""
+        keys = [(p.tobytes(), on) for p in points]
+        todo = [(p, k) for p, k in zip(points, keys) if k not in cache]
+        steps = cache[on][2] if on is not None else None
         results = [None] * len(todo)
         with tqdm(total=len(todo) * len(targets), desc=f"  start {current['start'] + 1}/{n_starts}: {what}", unit="sim",
                   leave=False, disable=not progress or not todo) as bar:
-            for i, result, error in pool.completed(_evaluate, [(p, problem) for p in todo]):
+            for i, result, error in pool.completed(_evaluate, [(p, problem, steps) for p, _ in todo]):
                 if error is not None:
                     raise error
                 results[i] = result
                 bar.update(len(targets))
-        for p, (r, engaged) in zip(todo, results):
-            cache[p.tobytes()] = (r, engaged)
+        for (p, k), result in zip(todo, results):
+            cache[k] = result
             counter["simulations"] += len(targets)
-            history.append({"start": current["start"], "cost": float(0.5 * r @ r), "gains": layout.gains(p)})
-        return [cache[p.tobytes()] for p in points]
+            history.append({"start": current["start"], "cost": float(0.5 * result[0] @ result[0]), "gains": layout.gains(p)})
+        return [cache[k] for k in keys]
 
     def fun(x):
         return evaluate_many([np.asarray(x, float)])[0][0]
 
     def jac(x):
+        """Forward differences around x, every point (x too) on the step sequences of x's own run."""
         x = np.asarray(x, float)
-        r0, engaged = evaluate_many([x])[0]
+        _, engaged, steps = evaluate_many([x])[0]
+        on = (x.tobytes(), None) if all(s is not None for s in steps) else None
+        r0 = evaluate_many([x], "Jacobian", on)[0][0]
         active = np.concatenate([engaged, np.ones(len(layout.groups), dtype=bool)])  # kp columns, then kv
-        return finite_difference_jacobian(lambda points: [r for r, _ in evaluate_many(points, "Jacobian")], x, fd_step,
+        return finite_difference_jacobian(lambda points: [r for r, _, _ in evaluate_many(points, "Jacobian", on)], x, fd_step,
                                           upper=hi, columns=np.flatnonzero(active), r0=r0)
 
     current = {"start": 0}
