@@ -168,3 +168,40 @@ def test_diagnosis_names_withheld_damping_and_shrinks_the_gap(model, tmp_path):
         tracks = recorded_positions(page.read_text())
         miss[label] = np.sqrt(np.mean(np.sum((tracks["/passenger/bones/lumbar1"] - tracks["/data/bones/lumbar1"]) ** 2, axis=1)))
     assert miss["diagnosed model against trial a"] < miss["nominal model against trial a"], miss
+
+
+def test_an_effect_no_better_than_more_gain_directions_is_not_claimed():
+    """The search's gain rival: an effect of k parameters is claimed only when it beats the current
+    model with its gains refitted along k more directions by the threshold (held-out chi2, same k)."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.search import Settings, _Search
+    from trunk_drake.gap.space import Fit, SearchSpace
+    from trunk_drake.optim.gains import GainLayout
+
+    class Fitter:  # the gains along one more direction reach `rival` on the held-out halves
+        def __init__(self, rival):
+            self.rival, self.spaces = rival, []
+
+        def fit(self, effects, x0, free, space=None):
+            self.spaces.append(space)
+            return Fit(tuple(e.name for e in effects), np.asarray(x0, float), 0.0, self.rival, {}, outputs=[])
+
+    layout = GainLayout(("kp.sacrospinalis", "kv.sacrospinalis", "kp.psoas_major"))
+    space = SearchSpace(TrunkOptions(), layout, np.eye(3)[:, :2])
+    trial = SimpleNamespace(steady_outputs=np.zeros((1000, 1)))
+    current = Fit((), np.zeros(2), 0.0, 1500.0, {})
+    delay, mass = effect("reflex_delay"), effect("upper_body_mass")
+    fits = {"reflex_delay": Fit(("reflex_delay",), np.zeros(3), 0.0, 1300.0, {}),
+            "upper_body_mass": Fit(("upper_body_mass",), np.zeros(3), 0.0, 1400.0, {})}
+    for rival, claimed in ((1350.0, "reflex_delay"), (1295.0, None)):
+        fitter = Fitter(rival)
+        search = _Search(space, SimpleNamespace(trials=[trial]), fitter, (delay, mass), Settings(), np.eye(3)[:, 2:], None)
+        chosen, tried = search.claim(current, fits)
+        assert (chosen and chosen["effect"]) == claimed
+        assert tried[0]["effect"] == "reflex_delay" and tried[0]["beats_gain_rival_by"] == pytest.approx(rival - 1300.0)
+        assert len(fitter.spaces) == 1 and fitter.spaces[0].rank == 3  # one rival per k, along the third direction
+    assert [t["effect"] for t in tried] == ["reflex_delay", "upper_body_mass"]  # the next candidate is tried too
+    fit, wider, dbic = search.widen(current)  # no claim: the gains along the third direction pass as an effect would
+    assert wider.rank == 3 and fit.heldout_chi2 == 1295.0 and dbic == pytest.approx(1500.0 - 1295.0 - search.penalty)

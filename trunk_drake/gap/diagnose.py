@@ -41,7 +41,7 @@ from trunk_drake.diagram import TrunkOptions
 from trunk_drake.gap.catalogue import CATALOGUE, effect
 from trunk_drake.gap.measures import frf_errors, locate_gap, measure_shrinkage, remainder, segment_chi2
 from trunk_drake.gap.refit import TimeDomainFitter, simulation_job
-from trunk_drake.gap.screen import LinearScreen, identifiable_directions
+from trunk_drake.gap.screen import LinearScreen, gain_directions, identifiable_rank
 from trunk_drake.gap.search import SearchResult, Settings, search_effects
 from trunk_drake.gap.space import SearchSpace
 from trunk_drake.gap.trials import estimate_noise, half, noise_variance_uncertainty, prepare_trials
@@ -102,11 +102,14 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
         nominal = [r[0] for r in results]
         screen = LinearScreen(model, options, data, nominal, [r[1] for r in results], noise)
         space = SearchSpace.around(model, options)
-        space = dataclasses.replace(space, directions=identifiable_directions(screen, space))
+        directions, singular_values = gain_directions(screen, space)
+        rank = identifiable_rank(singular_values)
+        space = dataclasses.replace(space, directions=directions[:, :rank])
         fitter = TimeDomainFitter(simulator, space, data, noise, outputs)
         if say:
             say(f"linearised; {space.rank} identifiable gain directions; screening {len(candidates)} candidates")
-        found = search_effects(space, screen, fitter, candidates, settings, nominal, [r[2] for r in results], say)
+        found = search_effects(space, screen, fitter, candidates, settings, nominal, [r[2] for r in results],
+                               directions[:, rank:], say)
     found.scores.update(nominal_heldout_chi2=sum(segment_chi2(t.steady_outputs, n, noise, half(t, "test"))
                                                  for t, n in zip(data, nominal)),
                         simulations=fitter.simulations + len(data))
@@ -117,6 +120,7 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
 def _report(data, noise, nominal, space: SearchSpace, found: SearchResult, left: dict, settings: Settings, candidates,
             outputs, wall) -> GapDiagnosis:
     """Where, the search's outcome, the remainder and the shrinkage, assembled."""
+    space = found.space or space  # the final model's: more gain directions when the search widened them
     variants = {"nominal": nominal, "refit": found.base.outputs}
     if found.selected:
         variants["effect"] = found.best.outputs
@@ -161,7 +165,8 @@ def _verdict(found: SearchResult, left: dict, shrink: dict, on_bounds: list[str]
         explained = f"missing effect{'s' if len(found.selected) > 1 else ''}: {claims}"
     elif found.scores["nominal_heldout_chi2"] - found.scores["refit_heldout_chi2"] > threshold:
         explained = ("mis-set parameters: a refit of the nominal reflex gains reduces the held-out gap; "
-                     f"no candidate effect improves on it by more than dBIC {threshold:g}")
+                     f"no candidate effect improves on it by more than dBIC {threshold:g} and by more than the gains "
+                     "refitted along as many further directions")
     else:
         explained = "no significant gap that a refit or a candidate effect explains beyond measurement noise"
     if on_bounds:

@@ -45,21 +45,23 @@ class TimeDomainFitter:
     def __init__(self, simulator: WorkerPool, space: SearchSpace, trials, noise, outputs):
         self.simulator, self.space, self.trials, self.noise, self.outputs = simulator, space, trials, noise, outputs
         self.simulations = 0
-        self.cache: dict = {}  # (effect names, x, key of the run whose steps are replayed or None) -> (outputs, steps)
+        self.cache: dict = {}  # (effect names, gain directions, x, key of the run replayed or None) -> (outputs, steps)
 
-    @staticmethod
-    def key(x, effects, on=None) -> tuple:
-        return tuple(e.name for e in effects), np.asarray(x, float).tobytes(), on
+    def key(self, x, effects, on=None, space: SearchSpace | None = None) -> tuple:
+        rank = (space or self.space).rank  # the same x means other gains along more directions
+        return tuple(e.name for e in effects), rank, np.asarray(x, float).tobytes(), on
 
-    def outputs_of(self, points, effects, on=None) -> list:
+    def outputs_of(self, points, effects, on=None, space: SearchSpace | None = None) -> list:
         """Each point's simulated outputs (None where a simulation diverged), simulated once and cached;
         `effects`: one tuple of effects for every point, or a list of one tuple per point; `on`: the
-        key of a run whose step sequences the simulations replay (None: each its own)."""
+        key of a run whose step sequences the simulations replay (None: each its own); `space`: the
+        points' space if not the fitter's."""
+        space = space or self.space
         each = effects if isinstance(effects, list) else [effects] * len(points)
-        keys = [self.key(p, fx, on) for p, fx in zip(points, each)]
+        keys = [self.key(p, fx, on, space) for p, fx in zip(points, each)]
         todo = {k: (p, fx) for k, p, fx in zip(keys, points, each) if k not in self.cache}
         steps = self.cache[on][1] if on is not None else [None] * len(self.trials)
-        jobs = [(self.space.options_for(p, fx), t, self.outputs, s) for p, fx in todo.values() for t, s in zip(self.trials, steps)]
+        jobs = [(space.options_for(p, fx), t, self.outputs, s) for p, fx in todo.values() for t, s in zip(self.trials, steps)]
         sims = self.simulator.map(simulation_job, jobs)
         self.simulations += len(jobs)
         n = len(self.trials)
@@ -88,8 +90,10 @@ class TimeDomainFitter:
             parts.append(((r - r.mean(axis=0)) / self.noise).ravel())
         return np.concatenate(parts)
 
-    def fit(self, effects, x0, free, max_iterations: int = 2) -> Fit:
-        lo, hi, _ = self.space.bounds(effects)
+    def fit(self, effects, x0, free, max_iterations: int = 2, space: SearchSpace | None = None) -> Fit:
+        """`effects` fitted from x0 on the coordinates `free` of x (in `space`, default the fitter's)."""
+        space = space or self.space
+        lo, hi, _ = space.bounds(effects)
         x_full = np.clip(np.asarray(x0, float), lo, hi)
         free = np.asarray(free, int)
 
@@ -98,16 +102,16 @@ class TimeDomainFitter:
             x[free] = z
             return x
 
-        own = self.key(x_full, effects)
-        self.outputs_of([x_full], effects)
+        own = self.key(x_full, effects, space=space)
+        self.outputs_of([x_full], effects, space=space)
         on = own if self.cache[own][0] is not None else None  # a diverging start: each point on its own steps
 
         def fun(z):
-            return self.residual(self.outputs_of([expand(z)], effects, on)[0])
+            return self.residual(self.outputs_of([expand(z)], effects, on, space)[0])
 
         def jac(z):
             return finite_difference_jacobian(
-                lambda points: [self.residual(o) for o in self.outputs_of([expand(p) for p in points], effects, on)],
+                lambda points: [self.residual(o) for o in self.outputs_of([expand(p) for p in points], effects, on, space)],
                 z, 0.02 * (hi[free] - lo[free]), upper=hi[free], r0=fun(z))
 
         z = x_full[free]
@@ -115,6 +119,6 @@ class TimeDomainFitter:
             z, *_ = levenberg_marquardt(fun, jac, z, lo[free], hi[free], max_iterations=max_iterations, tolerance=1e-3,
                                         refresh_every=max_iterations + 1)
         x = expand(z)
-        outputs = self.outputs_of([x], effects, on)[0]
+        outputs = self.outputs_of([x], effects, on, space)[0]
         return Fit(tuple(e.name for e in effects), x, self.chi2(outputs, "train"), self.chi2(outputs, "test"),
-                   {e.name: v for e, v in zip(effects, self.space.values(x, effects))}, outputs)
+                   {e.name: v for e, v in zip(effects, space.values(x, effects))}, outputs)

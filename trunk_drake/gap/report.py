@@ -95,10 +95,19 @@ def _step(step: dict) -> str:
     model = " + ".join(step["model"]) or "gains only"
     if step["action"] == "add":
         values = "; ".join(f"{n}: " + ", ".join(f"{k} = {v:.4g}" for k, v in vals.items()) for n, vals in step["values"].items())
-        return f"add **{step['effect']}** (dBIC {step['delta_bic']:.1f}); joint refit of {model}: {values}"
+        rival = step.get("beats_gain_rival_by")
+        against = "" if rival is None else f", better than refitting the gains along as many more directions by {rival:.1f}"
+        return f"add **{step['effect']}** (dBIC {step['delta_bic']:.1f}{against}); joint refit of {model}: {values}"
+    if step["action"] == "gains":
+        return (f"gains refitted along {step['directions']} directions (dBIC {step['delta_bic']:.1f}): mis-set gains beyond "
+                f"the identifiable ones; model: {model}")
     if step["action"] in ("keep", "drop"):
         own = ", ".join(f"{n} {v:.1f}" for n, v in step["own_delta_bic"].items())
         return (f"drop **{step['effect']}**" if step["action"] == "drop" else "keep all") + f" (own dBIC: {own}); model: {model}"
+    matched = step.get("matched_by_gains") or []
+    if matched:
+        names = ", ".join(f"{m['effect']} (dBIC {m['delta_bic']:.1f}, {m['beats_gain_rival_by']:+.1f} against the gains)" for m in matched)
+        return f"stop: {names} no better than the gains refitted along as many more directions (mis-set gains explain as much); model: {model}"
     best = f"best remaining {step['best_candidate']} (dBIC {step['delta_bic']:.1f})" if step["best_candidate"] else "no candidate left"
     return f"stop: {best} does not pass; model: {model}"
 

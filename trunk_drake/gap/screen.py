@@ -100,20 +100,25 @@ class LinearScreen:
                    {e.name: v for e, v in zip(effects, space.values(x, effects))})
 
 
-def identifiable_directions(screen: LinearScreen, space: SearchSpace, max_rank: int = 2,
-                            relative: float = 0.05) -> np.ndarray:
-    """Identifiable directions of the gains of `space` (one direction per gain): the top right
-    singular vectors of the linear residual Jacobian with respect to the log10 gains, those above
-    `relative` times the largest, at most `max_rank`. Known weakness on the default passenger
-    (reflexes on their thresholds): the linear model underestimates the third direction (1.2 % of
-    the first); a gains-only refit in three directions lowers the held-out chi2 of gap-benchmark
-    case no_effect_0 by 817 against two, and a false 10 ms reflex-delay claim then loses its
-    evidence. Not the default yet: a whole diagnosis with three directions was not measured."""
+def gain_directions(screen: LinearScreen, space: SearchSpace) -> tuple[np.ndarray, np.ndarray]:
+    """Directions of the gains of `space` (one direction per gain), most to least identifiable: the
+    right singular vectors (columns) of the linear residual Jacobian with respect to the log10
+    gains, and their singular values."""
     n = space.rank
     if n == 0:
-        return np.zeros((0, 0))
+        return np.zeros((0, 0)), np.zeros(0)
     J = finite_difference_jacobian(
         lambda points: [screen.residual(space.options_for(p, ()), "train", screen.nominal) for p in points], np.zeros(n), 0.05)
     _, s, vt = np.linalg.svd(J, full_matrices=False)
-    rank = int(min(max_rank, np.sum(s > relative * s[0]))) if s.size and s[0] > 0 else 0
-    return vt[:rank].T
+    return vt.T, s
+
+
+def identifiable_rank(singular_values: np.ndarray, max_rank: int = 2, relative: float = 0.05) -> int:
+    """How many of `gain_directions` are identifiable: those above `relative` times the largest
+    singular value, at most `max_rank`. Known weakness on the default passenger (reflexes on their
+    thresholds): the linear model underestimates the third direction (1.2 % of the first); a
+    gains-only refit in three directions lowers the held-out chi2 of gap-benchmark case no_effect_0
+    by 824 against two. Effects that mimic the remaining gain directions are kept from being
+    claimed by the search's gain rival instead (`search`)."""
+    s = singular_values
+    return int(min(max_rank, np.sum(s > relative * s[0]))) if s.size and s[0] > 0 else 0

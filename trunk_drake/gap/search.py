@@ -7,8 +7,13 @@ screen every remaining candidate added to the current model (linearly, around th
 model's simulation), check every candidate above the threshold with one nonlinear simulation at
 its linear fit, refine the best `refine` of that check with nonlinear simulations (the
 candidate's parameters and the gains, against the current model with its gains refitted as
-long) and add the best if its dBIC passes; the accepted model is then refitted
-jointly (gains and all effects). Backward steps refit the model without each selected effect
+long) and add the best whose dBIC passes and which beats the gain rival: the current model with
+its gains refitted along as many further directions as the effect has parameters (the next
+singular directions of the gains). An effect that does no better than that is as well explained by
+mis-set gains and is not claimed. The accepted model is then refitted jointly (gains and all effects).
+At the end, the gains of the selected model are refitted along further directions where those pass
+as an effect would (held-out dBIC): the final model then explains mis-set gains beyond the
+identifiable ones too, and its remainder is tested. Backward steps refit the model without each selected effect
 and drop the weakest while it does not pass.
 """
 
@@ -43,12 +48,15 @@ class SearchResult:
     best: Fit  # the selected model (the gains-only refit when nothing is claimed)
     steps: list[dict] = field(default_factory=list)  # the selection, step by step
     scores: dict = field(default_factory=dict)  # n_heldout, penalty, refit_heldout_chi2
+    space: SearchSpace | None = None  # the space of `best` (more gain directions than the search's when widened)
 
 
 class _Search:
     def __init__(self, space: SearchSpace, screen: LinearScreen, fitter: TimeDomainFitter, candidates, settings: Settings,
-                 progress):
+                 spare: np.ndarray, progress):
         self.space, self.screen, self.fitter, self.settings, self.say = space, screen, fitter, settings, progress or (lambda m: None)
+        self.spare = spare  # the gain directions beyond the space's, most identifiable first
+        self.rivals: dict = {}
         self.candidates = {e.name: e for e in candidates}
         n_test = sum(t.steady_outputs[half(t, "test")].size for t in screen.trials)
         self.n_test, self.penalty = n_test, float(np.log(n_test))
@@ -74,6 +82,49 @@ class _Search:
         fit = self.fitter.fit(self.effects(current.effects), current.x, np.arange(self.space.rank))
         better = fit.outputs is not None and fit.train_chi2 < current.train_chi2
         return fit if better else current
+
+    def rival(self, current: Fit, k: int) -> Fit | None:
+        """`current` with its gains refitted along `k` more directions (its effects held): what an added effect of
+        `k` parameters must beat. None when the gains have no further directions."""
+        if self.spare.shape[1] < k:
+            return None
+        key = (current.effects, k)
+        if key not in self.rivals:
+            rank = self.space.rank
+            wider = dataclasses.replace(self.space, directions=np.column_stack([self.space.directions, self.spare[:, :k]]))
+            x0 = np.concatenate([current.x[:rank], np.zeros(k), current.x[rank:]])
+            self.rivals[key] = (self.fitter.fit(self.effects(current.effects), x0, np.arange(rank + k), space=wider), wider)
+            self.say(f"gain rival with {k} more direction(s): held-out chi2 {self.rivals[key][0].heldout_chi2:.0f}")
+        return self.rivals[key][0]
+
+    def widen(self, current: Fit) -> tuple[Fit, SearchSpace, float] | None:
+        """`current`'s gains refitted along one more direction after another while each passes as an effect would
+        (held-out dBIC against one direction fewer): mis-set gains beyond the identifiable ones. The last that
+        passed, its space and its dBIC against `current`; None if the first does not."""
+        best, before, k = None, current, 1
+        while (rival := self.rival(current, k)) is not None and rival.outputs is not None:
+            if before.heldout_chi2 - rival.heldout_chi2 - self.penalty <= self.settings.threshold:
+                break
+            best, before, k = (rival, self.rivals[(current.effects, k)][1]), rival, k + 1
+        if best is None:
+            return None
+        return best[0], best[1], float(current.heldout_chi2 - best[0].heldout_chi2 - (k - 1) * self.penalty)
+
+    def claim(self, current: Fit, fits: dict[str, Fit]) -> tuple[dict | None, list[dict]]:
+        """The best candidate of `fits` whose dBIC passes and which beats its gain rival by the threshold
+        (the same number of parameters: held-out chi2 alone), or None; and every candidate tried."""
+        tried = []
+        for dbic, name in sorted(((self.dbic(current, f, self.candidates[n]), n) for n, f in fits.items()), reverse=True):
+            if dbic <= self.settings.threshold:
+                break
+            rival = self.rival(current, len(self.candidates[name].parameters))
+            margin = None if rival is None else float(rival.heldout_chi2 - fits[name].heldout_chi2)
+            tried.append({"effect": name, "delta_bic": dbic, "beats_gain_rival_by": margin})
+            if margin is None or margin > self.settings.threshold:
+                return tried[-1], tried
+            self.say(f"{name} does no better than the gains along {len(self.candidates[name].parameters)} more "
+                     f"direction(s) (by {margin:.1f})")
+        return None, tried
 
     def screen_additions(self, current: Fit, names) -> list[dict]:
         """Every candidate in `names` added to `current` (its effects held), fitted linearly around
@@ -163,10 +214,12 @@ class _Search:
 
 
 def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainFitter, candidates, settings: Settings,
-                   nominal, nominal_steps, progress=None) -> SearchResult:
+                   nominal, nominal_steps, spare, progress=None) -> SearchResult:
     """The gains-only refit from the `nominal` outputs (simulated on `nominal_steps`, per trial), every
-    candidate alone against it (the ranking), then forward and backward selection on each effect's own held-out dBIC (see the module docstring)."""
-    s = _Search(space, screen, fitter, candidates, settings, progress)
+    candidate alone against it (the ranking), then forward and backward selection on each effect's
+    own held-out dBIC, an added effect also against its gain rival along the `spare` gain directions
+    (columns, most identifiable first; see the module docstring)."""
+    s = _Search(space, screen, fitter, candidates, settings, spare, progress)
     rank = space.rank
     fitter.seed(np.zeros(rank), (), nominal, nominal_steps)
     base = s.regain(fitter.fit((), np.zeros(rank), np.arange(rank), max_iterations=3))
@@ -188,18 +241,20 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
             s.models[frozenset(current.effects)] = current
             rows = s.screen_additions(current, remaining)
             fits = s.refine(current, rows)
-        scored = sorted(((s.dbic(current, f, s.candidates[n]), n) for n, f in fits.items()), reverse=True)
-        if not scored or scored[0][0] <= settings.threshold:
-            steps.append({"action": "stop", "model": list(current.effects),
-                          "best_candidate": scored[0][1] if scored else None, "delta_bic": scored[0][0] if scored else None,
+        chosen, tried = s.claim(current, fits)
+        if chosen is None:
+            best = max(fits, key=lambda n: s.dbic(current, fits[n], s.candidates[n]), default=None)
+            steps.append({"action": "stop", "model": list(current.effects), "best_candidate": best,
+                          "delta_bic": s.dbic(current, fits[best], s.candidates[best]) if best else None,
+                          "matched_by_gains": [t for t in tried if t["beats_gain_rival_by"] is not None],
                           "heldout_chi2": current.heldout_chi2})
             break
-        dbic, name = scored[0]
+        dbic, name = chosen["delta_bic"], chosen["effect"]
         joint = s.joint(current.effects + (name,), fits[name].x)
         current = joint if joint.outputs is not None and joint.train_chi2 <= fits[name].train_chi2 else fits[name]
         s.models[frozenset(current.effects)] = current
-        steps.append({"action": "add", "effect": name, "delta_bic": dbic, "model": list(current.effects),
-                      "heldout_chi2": current.heldout_chi2, "values": current.values})
+        steps.append({"action": "add", "effect": name, "delta_bic": dbic, "beats_gain_rival_by": chosen["beats_gain_rival_by"],
+                      "model": list(current.effects), "heldout_chi2": current.heldout_chi2, "values": current.values})
         s.say(f"added {name} (dBIC {dbic:.1f}); joint refit: held-out chi2 {current.heldout_chi2:.0f}")
         while len(current.effects) > 1:  # every selected effect must still earn its place
             without = {n: s.without(current, n) for n in current.effects}
@@ -213,5 +268,12 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
             s.say(f"dropped {weakest} (own dBIC {own[weakest]:.1f})")
             dropped.add(weakest)
             current = without[weakest]
-    return SearchResult(base, ranking, list(current.effects), current, steps,
-                        {"n_heldout": s.n_test, "penalty": s.penalty, "refit_heldout_chi2": base.heldout_chi2})
+    final, final_space = current, space
+    widened = s.widen(current)
+    if widened:
+        final, final_space, dbic = widened
+        steps.append({"action": "gains", "directions": final_space.rank, "delta_bic": dbic, "model": list(current.effects),
+                      "heldout_chi2": final.heldout_chi2})
+        s.say(f"gains refitted along {final_space.rank} directions (dBIC {dbic:.1f}): held-out chi2 {final.heldout_chi2:.0f}")
+    return SearchResult(base, ranking, list(current.effects), final, steps,
+                        {"n_heldout": s.n_test, "penalty": s.penalty, "refit_heldout_chi2": base.heldout_chi2}, final_space)
