@@ -20,8 +20,10 @@ Method (the stages are modules of this package):
    then simulated once at its linear fit (near the reflexes' kinks the linear change can be
    15-65 % off), and the best `refine` of that check are refitted and scored with nonlinear
    simulations; forward selection adds the
-   best effect while its own dBIC passes, the selected effects and the gains are refitted
-   jointly, and backward steps drop an effect that no longer earns its place.
+   best effect while its own dBIC passes and it beats the gains refitted along as many further
+   directions (the gain rival), the selected effects and the gains are refitted jointly, and
+   backward steps drop an effect that no longer earns its place. Finally the gains are refitted
+   along further directions while each passes as an effect would.
 3. *How far it shrinks* (`measures`): 1 - VAF and the FRF error on the held-out halves before
    (nominal), after a gains-only refit and after the selected effect(s), with bootstrap
    intervals over 2 s windows; and whether what remains is measurement noise (held-out

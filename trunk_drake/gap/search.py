@@ -11,10 +11,10 @@ long) and add the best whose dBIC passes and which beats the gain rival: the cur
 its gains refitted along as many further directions as the effect has parameters (the next
 singular directions of the gains). An effect that does no better than that is as well explained by
 mis-set gains and is not claimed. The accepted model is then refitted jointly (gains and all effects).
-At the end, the gains of the selected model are refitted along further directions where those pass
-as an effect would (held-out dBIC): the final model then explains mis-set gains beyond the
-identifiable ones too, and its remainder is tested. Backward steps refit the model without each selected effect
-and drop the weakest while it does not pass.
+Backward steps refit the model without each selected effect and drop the weakest while it does not
+pass. At the end, the gains of the selected model are refitted along further directions while each
+passes as an effect would (held-out dBIC): the final model then explains mis-set gains beyond the
+identifiable ones too, and its remainder is tested.
 """
 
 from __future__ import annotations
@@ -83,6 +83,10 @@ class _Search:
         better = fit.outputs is not None and fit.train_chi2 < current.train_chi2
         return fit if better else current
 
+    def wider(self, k: int) -> SearchSpace:
+        """The search's space with `k` more gain directions."""
+        return dataclasses.replace(self.space, directions=np.column_stack([self.space.directions, self.spare[:, :k]]))
+
     def rival(self, current: Fit, k: int) -> Fit | None:
         """`current` with its gains refitted along `k` more directions (its effects held): what an added effect of
         `k` parameters must beat. None when the gains have no further directions."""
@@ -91,24 +95,23 @@ class _Search:
         key = (current.effects, k)
         if key not in self.rivals:
             rank = self.space.rank
-            wider = dataclasses.replace(self.space, directions=np.column_stack([self.space.directions, self.spare[:, :k]]))
             x0 = np.concatenate([current.x[:rank], np.zeros(k), current.x[rank:]])
-            self.rivals[key] = (self.fitter.fit(self.effects(current.effects), x0, np.arange(rank + k), space=wider), wider)
-            self.say(f"gain rival with {k} more direction(s): held-out chi2 {self.rivals[key][0].heldout_chi2:.0f}")
-        return self.rivals[key][0]
+            self.rivals[key] = self.fitter.fit(self.effects(current.effects), x0, np.arange(rank + k), space=self.wider(k))
+            self.say(f"gain rival with {k} more direction(s): held-out chi2 {self.rivals[key].heldout_chi2:.0f}")
+        return self.rivals[key]
 
     def widen(self, current: Fit) -> tuple[Fit, SearchSpace, float] | None:
         """`current`'s gains refitted along one more direction after another while each passes as an effect would
         (held-out dBIC against one direction fewer): mis-set gains beyond the identifiable ones. The last that
         passed, its space and its dBIC against `current`; None if the first does not."""
-        best, before, k = None, current, 1
-        while (rival := self.rival(current, k)) is not None and rival.outputs is not None:
+        before, k = current, 0
+        while (rival := self.rival(current, k + 1)) is not None and rival.outputs is not None:
             if before.heldout_chi2 - rival.heldout_chi2 - self.penalty <= self.settings.threshold:
                 break
-            best, before, k = (rival, self.rivals[(current.effects, k)][1]), rival, k + 1
-        if best is None:
+            before, k = rival, k + 1
+        if k == 0:
             return None
-        return best[0], best[1], float(current.heldout_chi2 - best[0].heldout_chi2 - (k - 1) * self.penalty)
+        return before, self.wider(k), float(current.heldout_chi2 - before.heldout_chi2 - k * self.penalty)
 
     def claim(self, current: Fit, fits: dict[str, Fit]) -> tuple[dict | None, list[dict]]:
         """The best candidate of `fits` whose dBIC passes and which beats its gain rival by the threshold
