@@ -60,6 +60,10 @@ def test_gap_benchmark_one_case(tmp_path, capsys):
     assert summary["cases"] == 1 and summary["failed"] == []
     assert (tmp_path / "cases" / "no_effect_0" / "report.md").exists()
     assert summary["candidates"] == ["extra_damping", "reflex_delay"]
+    row, = [json.loads(line) for line in (tmp_path / "results.jsonl").read_text().splitlines()]
+    # no claim; the gains widened beyond the 2 identifiable directions explain the gap, measured from the widened model
+    assert row["selected"] == [] and "gains" in [s["action"] for s in row["steps"]]
+    assert set(row["gap"]) == {"nominal", "refit", "widened"} and row["gap"]["widened"] < row["gap"]["refit"]
     capsys.readouterr()
     assert main(["gap-benchmark", "--case", "no_effect_0", "--out", str(tmp_path)]) == 2  # would mix two benchmarks
     assert "candidates: ['extra_damping', 'reflex_delay'] there, None now" in capsys.readouterr().err

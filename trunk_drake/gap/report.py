@@ -156,7 +156,7 @@ def _plot_shrink(d, path) -> Path:
         t = s["time"]
         half = t.size // 2
         ax.plot(t, np.degrees(s["data"]), color="0.6", lw=1, label="data")
-        for key, style in (("nominal", "C0"), ("refit", "C2"), ("effect", "C3")):
+        for key, style in (("nominal", "C0"), ("refit", "C2"), ("effect", "C3"), ("widened", "C3")):
             if s.get(key) is not None:
                 ax.plot(t, np.degrees(s[key] - s[key].mean()), color=style, lw=0.8, label=key)
         ax.axvspan(t[half], t[-1], color="0.9", zorder=0)
