@@ -205,3 +205,38 @@ def test_an_effect_no_better_than_more_gain_directions_is_not_claimed():
     assert [t["effect"] for t in tried] == ["reflex_delay", "upper_body_mass"]  # the next candidate is tried too
     fit, wider, dbic = search.widen(current)  # no claim: the gains along the third direction pass as an effect would
     assert wider.rank == 3 and fit.heldout_chi2 == 1295.0 and dbic == pytest.approx(1500.0 - 1295.0 - search.penalty)
+
+
+def test_the_check_also_simulates_a_linear_fit_with_the_current_gains():
+    """The linear fit can be far off at the reflexes' kinks: the check simulates each screened row at its linear
+    fit, at the effect's linear fit with the current gains and at the catalogue's start with the current gains,
+    and keeps the best start on the training halves."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.search import Settings, _Search
+    from trunk_drake.gap.space import Fit, SearchSpace
+    from trunk_drake.optim.gains import GainLayout
+
+    class Fitter:  # a simulation fits the training halves well only with the current gains (0.1, 0.2)
+        def outputs_of(self, points, effects, space=None):
+            return [np.asarray(p, float) for p in points]
+
+        def chi2(self, x, which):  # best near the truth (0.15, 0.15)
+            return 1000.0 + 1e4 * float(np.sum((x - [0.1, 0.2, 0.15, 0.15]) ** 2)) + (0.0 if which == "train" else 50.0)
+
+    layout = GainLayout(("kp.sacrospinalis", "kv.sacrospinalis"))
+    space = SearchSpace(TrunkOptions(), layout, np.eye(2))
+    trial = SimpleNamespace(steady_outputs=np.zeros((1000, 1)))
+    tis = effect("trunk_in_space")
+    search = _Search(space, SimpleNamespace(trials=[trial]), Fitter(), (tis,), Settings(), np.zeros((2, 0)), None)
+    current = Fit((), np.array([0.1, 0.2]), 1100.0, 1200.0, {})
+    linear = Fit(("trunk_in_space",), np.array([0.9, -0.7, 0.3, 0.08]), 0.0, 0.0, {})
+    row, = search.check(current, [{"effect": "trunk_in_space", "linear_delta_bic": 500.0, "linear_fit": linear}])
+    start = [p.start for p in tis.parameters]
+    assert np.allclose(row["linear_fit"].x, [0.1, 0.2, *start])  # the catalogue's start with the current gains
+    chi2 = 1000.0 + 1e4 * float(np.sum((np.array(start) - 0.15) ** 2)) + 50.0
+    assert row["checked_delta_bic"] == pytest.approx(1200.0 - chi2 - 2 * search.penalty)
+    linear = Fit(("trunk_in_space",), np.array([0.9, -0.7, 0.14, 0.16]), 0.0, 0.0, {})
+    row, = search.check(current, [{"effect": "trunk_in_space", "linear_delta_bic": 500.0, "linear_fit": linear}])
+    assert np.allclose(row["linear_fit"].x, [0.1, 0.2, 0.14, 0.16])  # the effect's linear fit, the current gains
