@@ -4,8 +4,9 @@ nonlinear refits of the best, and forward/backward selection on held-out evidenc
 Every decision is one effect's own held-out dBIC against the model without it:
 dBIC = chi2_test(without) - chi2_test(with) - k ln N, claimed above `threshold`. Forward steps
 screen every remaining candidate added to the current model (linearly, around the current
-model's simulation), check every candidate above the threshold with one nonlinear simulation at
-its linear fit, refine the best `refine` of that check with nonlinear simulations (the
+model's simulation), check every candidate above the threshold with nonlinear simulations at
+three starts (its linear fit, and the effect's linear fit or the catalogue's start with the
+current gains), refine the best `refine` of that check with nonlinear simulations (the
 candidate's parameters and the gains, against the current model with its gains refitted as
 long) and add the best whose dBIC passes and which beats the gain rival: the current model with
 its gains refitted along as many further directions as the effect has parameters (the next
