@@ -240,3 +240,6 @@ def test_the_check_also_simulates_a_linear_fit_with_the_current_gains():
     linear = Fit(("trunk_in_space",), np.array([0.9, -0.7, 0.14, 0.16]), 0.0, 0.0, {})
     row, = search.check(current, [{"effect": "trunk_in_space", "linear_delta_bic": 500.0, "linear_fit": linear}])
     assert np.allclose(row["linear_fit"].x, [0.1, 0.2, 0.14, 0.16])  # the effect's linear fit, the current gains
+    search.settings = Settings(check=1)  # only the best `check` rows by linear dBIC are simulated
+    rows = search.check(current, [{"effect": "trunk_in_space", "linear_delta_bic": v, "linear_fit": linear} for v in (500.0, 400.0)])
+    assert "checked_delta_bic" in rows[0] and "checked_delta_bic" not in rows[1]

@@ -1,6 +1,7 @@
 """Gap benchmark bookkeeping: noise, effect signatures and the summary's rates."""
 
 import numpy as np
+import pytest
 
 from trunk_drake.gap.benchmark import summarize, summary_markdown
 from trunk_drake.gap.synthetic import add_noise, signature_chi2
@@ -54,3 +55,15 @@ def test_summary_rates_per_class_and_unobservable_cases_left_out():
     assert s["gap_reduction_above_noise"]["cases"] == 2  # exactly identified: d1 and p1
     text = summary_markdown(s)
     assert "unobservable" in text and "| p2 | pair |" in text and "o2" in text
+
+
+def test_cases_start_with_their_classes_mixed_and_a_folder_refuses_other_code(tmp_path):
+    from trunk_drake.gap import benchmark
+
+    order = benchmark.mixed(benchmark.cases())
+    assert [c.kind for c in order[:4]] == ["single", "pair", "outside", "none"]
+    assert sorted(c.name for c in order) == sorted(c.name for c in benchmark.cases())
+    settings = {"noise_deg": 0.1, "candidates": None, "code": "a"}
+    benchmark._check_settings(tmp_path / "settings.json", settings)
+    with pytest.raises(ValueError, match="code: a there, b now"):
+        benchmark._check_settings(tmp_path / "settings.json", {**settings, "code": "b"})

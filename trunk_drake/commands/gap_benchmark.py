@@ -21,7 +21,8 @@ def add_command(sub) -> None:
     b.add_argument("--candidates", nargs="+", choices=[e.name for e in CATALOGUE], metavar="EFFECT", default=None,
                    help="the effects each diagnosis chooses among (default: the whole catalogue); a restricted "
                         "catalogue is a different benchmark: a folder resumes only with the candidates it began with")
-    b.add_argument("--workers", type=count, default=2, help="local processes of each case's diagnosis")
+    b.add_argument("--workers", type=count, default=2,
+                   help="local processes: the cases run on them in parallel (one case: its diagnosis does)")
     b.add_argument("--cluster", default=None, metavar="ADDRESS",
                    help="Dask scheduler address, e.g. tcp://host:8786: the cases run in parallel, one per worker")
     b.add_argument("--json", action="store_true", help="print the summary as JSON")

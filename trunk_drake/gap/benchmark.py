@@ -25,7 +25,7 @@ from trunk_drake.gap.catalogue import effect
 from trunk_drake.gap.diagnose import diagnose_gap
 from trunk_drake.gap.report import write_diagnosis
 from trunk_drake.gap.synthetic import add_noise, clean_trials, signature_chi2
-from trunk_drake.metadata import json_default
+from trunk_drake.metadata import json_default, source_fingerprint
 from trunk_drake.optim.gains import GAIN_BOUNDS
 from trunk_drake.parallel import WorkerPool
 from trunk_drake.thesis import reference_model, reference_truth_options, truth_gains
@@ -215,14 +215,15 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
                   cluster: str | None = None, only=None, candidates=None) -> dict:
     """Run (or resume) every case, or those of `only` (case names or classes: single, pair, outside,
     none); returns the summary of the cases done so far (also written to summary.json/.md). Each
-    diagnosis chooses among `candidates` (effect names; default the whole catalogue). Locally
-    the cases run one after another, each diagnosis on `workers` processes; on the Dask cluster at
-    `cluster` the cases run in parallel, one per worker. A folder resumes only with the noise and
-    candidates it was started with."""
+    diagnosis chooses among `candidates` (effect names; default the whole catalogue). The cases run
+    in parallel, one per worker: on `workers` local processes, or on the Dask cluster at `cluster`;
+    a single case runs its diagnosis on the `workers` instead. They start in an order that mixes the
+    classes, so that an interrupted run already covers each. A folder resumes only with the noise,
+    candidates and code (`source_fingerprint`) it was started with."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     candidates = sorted(candidates) if candidates else None
-    _check_settings(out / "settings.json", {"noise_deg": noise_deg, "candidates": candidates})
+    _check_settings(out / "settings.json", {"noise_deg": noise_deg, "candidates": candidates, "code": source_fingerprint()})
     results_path = out / "results.jsonl"
     done = {}
     if results_path.exists():
@@ -232,9 +233,10 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
     all_cases = select_cases(only) if only else cases(quick)
     model, nominal = truth_configuration()
     noise = float(np.radians(noise_deg))
-    pending = [c for c in all_cases if c.name not in done or "error" in done[c.name]]
-    jobs = [(case, nominal, noise, 1 if cluster else workers, candidates) for case in pending]
-    with WorkerPool(model, 1, cluster) as pool:
+    pending = mixed([c for c in all_cases if c.name not in done or "error" in done[c.name]])
+    per_case = workers if len(pending) == 1 and not cluster else 1
+    jobs = [(case, nominal, noise, per_case, candidates) for case in pending]
+    with WorkerPool(model, 1 if per_case > 1 else workers, cluster) as pool:
         for finished, (i, result, error) in enumerate(pool.completed(_case_job, jobs), 1):
             case = pending[i]
             row, diagnosis = result if error is None else (_error_row(case, f"worker lost: {type(error).__name__}: {error}"), None)
@@ -251,6 +253,16 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=json_default))
     (out / "summary.md").write_text(summary_markdown(summary))
     return summary
+
+
+def mixed(cases_: list[Case]) -> list[Case]:
+    """`cases_` with their classes interleaved: the first of each class, then the second of each, ..."""
+    seen = dict.fromkeys(CLASSES, 0)
+    keyed = []
+    for c in cases_:
+        keyed.append((seen[c.kind], CLASSES.index(c.kind)))
+        seen[c.kind] += 1
+    return [c for _, c in sorted(zip(keyed, cases_), key=lambda kc: kc[0])]
 
 
 def _check_settings(path: Path, settings: dict) -> None:

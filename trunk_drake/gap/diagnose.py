@@ -96,7 +96,7 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
         noise, noise_rel_sd = np.broadcast_to(np.asarray(noise, float), (len(outputs),)).copy(), 0.0
     if say:
         say(f"{len(data)} trials, noise {np.round(np.degrees(noise), 3).tolist()} deg; simulating the nominal model")
-    settings = Settings(threshold, max_effects, refine)
+    settings = Settings(threshold=threshold, max_effects=max_effects, refine=refine)
     with WorkerPool(model, workers) as simulator:
         results = simulator.map(simulation_job, [(options, t, outputs, None) for t in data])
         for t, r in zip(data, results):

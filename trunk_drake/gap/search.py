@@ -33,11 +33,13 @@ from trunk_drake.gap.trials import half
 
 @dataclass
 class Settings:
-    """How the search decides: claim threshold (held-out dBIC), at most `max_effects` effects,
-    the best `refine` candidates of each screening refined with nonlinear simulations."""
+    """How the search decides: claim threshold (held-out dBIC), at most `max_effects` effects, the
+    best `check` candidates of each screening checked with simulations and the best `refine` of
+    those refined with nonlinear fits."""
 
     threshold: float = 10.0
     max_effects: int = 3
+    check: int = 6
     refine: int = 3
 
 
@@ -165,15 +167,16 @@ class _Search:
         return sorted(rows, key=lambda r: -r["linear_delta_bic"])
 
     def check(self, current: Fit, rows: list[dict]) -> list[dict]:
-        """Every screened row above the threshold simulated (nonlinear) at three points - its linear fit, the
-        effect's linear fit with `current`'s gains, and the catalogue's start with `current`'s gains - the best
-        on the training halves kept as the row's start, and the rows re-sorted by that checked dBIC. Near the
+        """The best `check` screened rows above the threshold (`rows` come sorted by linear dBIC), each simulated
+        (nonlinear) at three points - its linear fit, the effect's linear fit with `current`'s gains, and the
+        catalogue's start with `current`'s gains - the best on the training halves kept as the row's start, and
+        the rows re-sorted by that checked dBIC. Near the
         reflexes' kinks the linear model's predicted change can be 15-65 % off (slower activation: about
         100 %), enough to misrank candidates, and its fit can be far from the truth: on
         trunk_in_space_gain0.15_delay0.15 it fitted gain 0.54 and delay 87 ms (truth 0.15, 150 ms), checked at
         dBIC -61,751 with its gains, while a refit from the catalogue's start reaches the noise floor. A
         simulation is exact. The refits then start from simulations already made."""
-        checked = [r for r in rows if "linear_fit" in r and r["linear_delta_bic"] > self.settings.threshold]
+        checked = [r for r in rows if "linear_fit" in r and r["linear_delta_bic"] > self.settings.threshold][:self.settings.check]
         rank, n = self.space.rank, current.x.size
         points, effects = [], []
         for r in checked:
