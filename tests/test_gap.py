@@ -235,6 +235,7 @@ def test_the_check_also_simulates_a_linear_fit_with_the_current_gains():
     row, = search.check(current, [{"effect": "trunk_in_space", "linear_delta_bic": 500.0, "linear_fit": linear}])
     start = [p.start for p in tis.parameters]
     assert np.allclose(row["linear_fit"].x, [0.1, 0.2, *start])  # the catalogue's start with the current gains
+    assert row["checked_values"] == tis.values(np.array(start))  # reported with the dBIC simulated there
     chi2 = 1000.0 + 1e4 * float(np.sum((np.array(start) - 0.15) ** 2)) + 50.0
     assert row["checked_delta_bic"] == pytest.approx(1200.0 - chi2 - 2 * search.penalty)
     linear = Fit(("trunk_in_space",), np.array([0.9, -0.7, 0.14, 0.16]), 0.0, 0.0, {})

@@ -57,10 +57,11 @@ def markdown(d, names: dict) -> str:
               "Each candidate is refitted with the nominal reflex gains and scored on held-out data: "
               "dBIC = chi2(gains-only refit) - chi2(candidate) - k ln N (positive favours the candidate; "
               f"claimed above {d.options['threshold']:g}).", "",
-              "| rank | effect | dBIC (nonlinear refit) | dBIC (one simulation at the linear fit) | dBIC (linear screening) | fitted parameters | status |",
+              "| rank | effect | dBIC (nonlinear refit) | dBIC (simulated at the best of three starts) | dBIC (linear screening) | "
+              "parameters (refitted, else simulated, else linear) | status |",
               "|---|---|---|---|---|---|---|"]
     for k, r in enumerate(d.ranking, 1):
-        values = r.get("values") or r.get("linear_values") or {}
+        values = r.get("values") or r.get("checked_values") or r.get("linear_values") or {}
         text = ", ".join(f"{n} = {v:.4g}" for n, v in values.items())
         dbic, checked = (f"{r[key]:.1f}" if key in r else "-" for key in ("delta_bic", "checked_delta_bic"))
         lines.append(f"| {k} | {r['effect']} | {dbic} | {checked} | {r['linear_delta_bic']:.1f} | {text} | {r.get('status', '')} |")

@@ -188,6 +188,7 @@ class _Search:
         for k, row in enumerate(checked):
             best = min(range(3 * k, 3 * k + 3), key=lambda i: self.fitter.chi2(outputs[i], "train"))
             row["linear_fit"] = dataclasses.replace(row["linear_fit"], x=points[best])
+            row["checked_values"] = self.space.values(points[best], effects[best])[-1]
             row["checked_delta_bic"] = self.dbic(current, dataclasses.replace(
                 row["linear_fit"], heldout_chi2=self.fitter.chi2(outputs[best], "test")), self.candidates[row["effect"]])
         return sorted(rows, key=lambda r: (-r.get("checked_delta_bic", -np.inf), -r["linear_delta_bic"]))
