@@ -68,7 +68,8 @@ def test_a_replayed_step_sequence_gives_smooth_finite_differences():
 
     base = simulate(model, duration=SHORT, bandwidth=1.0, seed=0, options=options, **differentiable_settings(model, options))
     replay = lambda kp: run(kp, **differentiable_settings(model, options, base.step_times))  # noqa: E731
-    np.testing.assert_allclose(replay(options.kp), base.lumbar_rotation, rtol=0, atol=np.radians(1e-4))
+    # the fits take a run for its own replay (measured: 5e-12 deg apart)
+    np.testing.assert_allclose(replay(options.kp), base.lumbar_rotation, rtol=0, atol=np.radians(1e-9))
     fine = simulate(model, duration=SHORT, bandwidth=1.0, seed=0, options=options, integrator="runge_kutta3", accuracy=1e-6)
     exact = run(more, integrator="runge_kutta3", steps=fine.step_times) - fine.lumbar_rotation
     assert np.linalg.norm(exact) > np.radians(0.01), "the gain must move the trunk"

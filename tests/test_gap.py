@@ -244,3 +244,15 @@ def test_the_check_also_simulates_a_linear_fit_with_the_current_gains():
     search.settings = Settings(check=1)  # only the best `check` rows by linear dBIC are simulated
     rows = search.check(current, [{"effect": "trunk_in_space", "linear_delta_bic": v, "linear_fit": linear} for v in (500.0, 400.0)])
     assert "checked_delta_bic" in rows[0] and "checked_delta_bic" not in rows[1]
+
+
+def test_a_run_replayed_on_its_own_step_sequences_is_not_simulated_again():
+    from trunk_drake.gap.refit import TimeDomainFitter
+    from trunk_drake.gap.space import SearchSpace
+    from trunk_drake.optim.gains import GainLayout
+
+    space = SearchSpace(TrunkOptions(), GainLayout(("kp.sacrospinalis",)), np.eye(1))
+    fitter = TimeDomainFitter(None, space, [], None, ())
+    own = fitter.key([0.1], ())
+    assert fitter.key([0.1], (), on=own) == own  # its own replay: the run itself
+    assert fitter.key([0.2], (), on=own) == fitter.key([0.2], ())[:3] + (own,)

@@ -210,6 +210,14 @@ def default_integrator(model, options: TrunkOptions) -> str:
     return NONSTIFF_INTEGRATOR if model.coupling is not None and options.tendon == "rigid" else STIFF_INTEGRATOR
 
 
+def replay_key(point: tuple, on: tuple | None) -> tuple:
+    """Cache key of the run of `point` (a tuple) on the step sequences of the run keyed `on` (None: on its
+    own): keyed as the run `on` itself when that is the point's own run, which its replay reproduces
+    (5e-12 deg apart, tests/test_accuracy.py), so that the fits do not simulate it again."""
+    own = (*point, None)
+    return own if on is None or on == own else (*point, on)
+
+
 def differentiable_settings(model, options: TrunkOptions, steps: np.ndarray | None = None) -> dict:
     """`simulate` keywords for simulations that are differentiated by finite differences (the fits): the result must
     be a smooth function of the parameters. An error-controlled step sequence changes with them, and its switching

@@ -12,7 +12,7 @@ from trunk_drake.gap.space import Fit, SearchSpace
 from trunk_drake.gap.trials import half
 from trunk_drake.optim.least_squares import finite_difference_jacobian, levenberg_marquardt
 from trunk_drake.parallel import WorkerPool
-from trunk_drake.simulation import SimulationError, differentiable_settings, simulate
+from trunk_drake.simulation import SimulationError, differentiable_settings, replay_key, simulate
 
 DIVERGED = 1e12  # chi-square of a simulation that diverged
 
@@ -48,8 +48,9 @@ class TimeDomainFitter:
         self.cache: dict = {}  # (effect names, gain directions, x, key of the run replayed or None) -> (outputs, steps)
 
     def key(self, x, effects, on=None, space: SearchSpace | None = None) -> tuple:
+        """The cache key of x simulated on the step sequences of the run keyed `on` (`replay_key`)."""
         rank = (space or self.space).rank  # the same x means other gains along more directions
-        return tuple(e.name for e in effects), rank, np.asarray(x, float).tobytes(), on
+        return replay_key((tuple(e.name for e in effects), rank, np.asarray(x, float).tobytes()), on)
 
     def outputs_of(self, points, effects, on=None, space: SearchSpace | None = None) -> list:
         """Each point's simulated outputs (None where a simulation diverged), simulated once and cached;

@@ -29,7 +29,7 @@ from trunk_drake.optim.gains import GAIN_BOUNDS, GainLayout
 from trunk_drake.optim.least_squares import finite_difference_jacobian, inverse_or_inf, levenberg_marquardt
 from trunk_drake.parallel import WorkerPool
 from trunk_drake.signals import estimate_frf, vaf
-from trunk_drake.simulation import SimulationError, differentiable_settings, simulate
+from trunk_drake.simulation import SimulationError, differentiable_settings, replay_key, simulate
 
 # Stop when an accepted step lowers the cost by less than this fraction. The cost is a chi-square/2, about half the
 # number of samples at the noise floor (14406 for the two reference trials), and one SD of a gain moves it by 0.5:
@@ -201,7 +201,7 @@ def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_
     def evaluate_many(points, what="cost", on=None):
         """Each point's (residuals, engaged, step times), simulated once; `on`: the cache key of a run whose
         step sequences are replayed (None: each point on its own)."""
-        keys = [(p.tobytes(), on) for p in points]
+        keys = [replay_key((p.tobytes(),), on) for p in points]
         todo = [(p, k) for p, k in zip(points, keys) if k not in cache]
         steps = cache[on][2] if on is not None else None
         results = [None] * len(todo)
@@ -222,11 +222,10 @@ def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_
         return evaluate_many([np.asarray(x, float)])[0][0]
 
     def jac(x):
-        """Forward differences around x, every point (x too) on the step sequences of x's own run."""
+        """Forward differences around x, every point on the step sequences of x's own run."""
         x = np.asarray(x, float)
-        _, engaged, steps = evaluate_many([x])[0]
+        r0, engaged, steps = evaluate_many([x])[0]
         on = (x.tobytes(), None) if all(s is not None for s in steps) else None
-        r0 = evaluate_many([x], "Jacobian", on)[0][0]
         active = np.concatenate([engaged, np.ones(len(layout.groups), dtype=bool)])  # kp columns, then kv
         return finite_difference_jacobian(lambda points: [r for r, _, _ in evaluate_many(points, "Jacobian", on)], x, fd_step,
                                           upper=hi, columns=np.flatnonzero(active), r0=r0)
