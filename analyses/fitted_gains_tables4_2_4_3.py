@@ -144,7 +144,7 @@ def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, tria
             ["car-passenger gains vs truth", "no truth (measured data)", f"{within}/{len(finite_z)} identifiable gains within 2 SD"],
             ["fit wall time", "~70 h (MATLAB + OpenSim)",
              f"settling {settling.wall_time_s / 60:.1f} min, car {car.wall_time_s / 60:.1f} min "
-                                                          f"({workers} processes)"],
+                                                          f"({workers} {'process' if workers == 1 else 'processes'})"],
             ["muscle groups", "9 (incl. latissimus dorsi, transversus abdominis)", f"{len(car.gains['kp'])} (absent: {', '.join(absent)})"],
         ],
         figures=[figure, settling_files["convergence_plot"], car_files["convergence_plot"]],
@@ -181,8 +181,8 @@ def run(out_dir, model=None, workers=2, inputs=None, settling_duration=5.0, tria
         settings={"settling": f"{settling_duration:g} s, target 0 deg, co-activation 0.020, k = 100 Nm/rad, c = 7.5 Nms/rad",
                   "car": f"{', '.join(trials)}" + (f" (first {t_max:g} s)" if t_max else "")
                          + "; conditions from models/reference/conditions.toml",
-                  "fit": f"bounded secant Levenberg-Marquardt, 1 start (thesis initial values), <= {max_iterations} iterations, "
-                         f"{workers} worker processes"},
+                  "fit": f"bounded secant Levenberg-Marquardt, 1 start (settling: the thesis' initial values; car: the data's "
+                         f"preset gains), <= {max_iterations} iterations, {workers} worker {'process' if workers == 1 else 'processes'}"},
     )
 
 
