@@ -207,32 +207,6 @@ def test_an_effect_no_better_than_more_gain_directions_is_not_claimed():
     assert wider.rank == 3 and fit.heldout_chi2 == 1295.0 and dbic == pytest.approx(1500.0 - 1295.0 - search.penalty)
 
 
-def test_an_effect_must_also_beat_the_gains_widened_as_far_as_they_pass():
-    """A 1-parameter effect that beats the gains along one more direction but not the gains widened along two
-    (held-out chi2 plus ln N per parameter) stands in for mis-set gains and is not claimed."""
-    from types import SimpleNamespace
-
-    from trunk_drake.gap.catalogue import effect
-    from trunk_drake.gap.search import Settings, _Search
-    from trunk_drake.gap.space import Fit, SearchSpace
-    from trunk_drake.optim.gains import GainLayout
-
-    class Fitter:  # the gains along one more direction reach 1350, along two 1250
-        def fit(self, effects, x0, free, space=None):
-            return Fit((), np.asarray(x0, float), 0.0, {3: 1350.0, 4: 1250.0}[space.rank], {}, outputs=[])
-
-    layout = GainLayout(("kp.sacrospinalis", "kv.sacrospinalis", "kp.psoas_major", "kv.psoas_major"))
-    space = SearchSpace(TrunkOptions(), layout, np.eye(4)[:, :2])
-    trial = SimpleNamespace(steady_outputs=np.zeros((1000, 1)))
-    delay = effect("reflex_delay")
-    search = _Search(space, SimpleNamespace(trials=[trial]), Fitter(), (delay,), Settings(), np.eye(4)[:, 2:], None)
-    current = Fit((), np.zeros(2), 0.0, 1500.0, {})
-    for heldout, claimed in ((1300.0, None), (1200.0, "reflex_delay")):
-        chosen, tried = search.claim(current, {"reflex_delay": Fit(("reflex_delay",), np.zeros(3), 0.0, heldout, {})})
-        assert (chosen and chosen["effect"]) == claimed
-        assert tried[0]["beats_gain_rival_by"] == pytest.approx(1250.0 + search.penalty - heldout)
-
-
 def test_the_check_also_simulates_a_linear_fit_with_the_current_gains():
     """The linear fit can be far off at the reflexes' kinks: the check simulates each screened row at its linear
     fit, at the effect's linear fit with the current gains and at the catalogue's start with the current gains,

@@ -4,14 +4,14 @@ nonlinear refits of the best, and forward/backward selection on held-out evidenc
 Every decision is one effect's own held-out dBIC against the model without it:
 dBIC = chi2_test(without) - chi2_test(with) - k ln N, claimed above `threshold`. Forward steps
 screen every remaining candidate added to the current model (linearly, around the current
-model's simulation), check the best `check` of them above the threshold with nonlinear simulations
-at three starts (its linear fit, and the effect's linear fit or the catalogue's start with the
+model's simulation), check every candidate above the threshold with nonlinear simulations at
+three starts (its linear fit, and the effect's linear fit or the catalogue's start with the
 current gains), refine the best `refine` of that check with nonlinear simulations (the
 candidate's parameters and the gains, against the current model with its gains refitted as
-long) and add the best whose dBIC passes and which beats the gains: its gain rival (the current
-model with its gains refitted along as many further directions as the effect has parameters, the
-next singular directions of the gains) and the gains widened as far as they pass (compared as
-BIC). An effect that does no better is as well explained by mis-set gains and is not claimed. The accepted model is then refitted jointly (gains and all effects).
+long) and add the best whose dBIC passes and which beats the gain rival: the current model with
+its gains refitted along as many further directions as the effect has parameters (the next
+singular directions of the gains). An effect that does no better than that is as well explained by
+mis-set gains and is not claimed. The accepted model is then refitted jointly (gains and all effects).
 Backward steps refit the model without each selected effect and drop the weakest while it does not
 pass. At the end, the gains of the selected model are refitted along further directions while each
 passes as an effect would (held-out dBIC): the final model then explains mis-set gains beyond the
@@ -117,29 +117,19 @@ class _Search:
         return before, self.wider(k), float(current.heldout_chi2 - before.heldout_chi2 - k * self.penalty)
 
     def claim(self, current: Fit, fits: dict[str, Fit]) -> tuple[dict | None, list[dict]]:
-        """The best candidate of `fits` whose dBIC passes and which beats the gains by the threshold, or None; and
-        every candidate tried. The gains are its gain rival (as many more directions as it has parameters: held-out
-        chi2 alone decides) and, if they go further, the gains widened as far as they pass (`widen`: held-out chi2
-        plus ln N per parameter beyond `current`'s on both sides). With the rival alone, an effect of one parameter
-        could stand in for two gain directions: on reflex_delay_delay0.04 a 0.92 upper-body mass (truth 1) beat the
-        gains along one more direction by 455 but lost to the gains widened along two (as BIC) by about 400."""
+        """The best candidate of `fits` whose dBIC passes and which beats its gain rival by the threshold
+        (the same number of parameters: held-out chi2 alone), or None; and every candidate tried."""
         tried = []
         for dbic, name in sorted(((self.dbic(current, f, self.candidates[n]), n) for n, f in fits.items()), reverse=True):
             if dbic <= self.settings.threshold:
                 break
-            k = len(self.candidates[name].parameters)
-            rival = self.rival(current, k)
+            rival = self.rival(current, len(self.candidates[name].parameters))
             margin = None if rival is None else float(rival.heldout_chi2 - fits[name].heldout_chi2)
-            if margin is None or margin > self.settings.threshold:
-                widened = self.widen(current)  # its rivals are cached: computed once per model
-                m = 0 if widened is None else widened[1].rank - self.space.rank
-                if m > k:
-                    bic = float(widened[0].heldout_chi2 + m * self.penalty - fits[name].heldout_chi2 - k * self.penalty)
-                    margin = bic if margin is None else min(margin, bic)
             tried.append({"effect": name, "delta_bic": dbic, "beats_gain_rival_by": margin})
             if margin is None or margin > self.settings.threshold:
                 return tried[-1], tried
-            self.say(f"{name} does no better than the gains along more directions (by {margin:.1f})")
+            self.say(f"{name} does no better than the gains along {len(self.candidates[name].parameters)} more "
+                     f"direction(s) (by {margin:.1f})")
         return None, tried
 
     def screen_additions(self, current: Fit, names) -> list[dict]:
