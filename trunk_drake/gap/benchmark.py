@@ -234,9 +234,9 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
     model, nominal = truth_configuration()
     noise = float(np.radians(noise_deg))
     pending = mixed([c for c in all_cases if c.name not in done or "error" in done[c.name]])
-    per_case = workers if len(pending) == 1 and not cluster else 1
-    jobs = [(case, nominal, noise, per_case, candidates) for case in pending]
-    with WorkerPool(model, 1 if per_case > 1 else workers, cluster) as pool:
+    in_parallel = bool(cluster) or len(pending) > 1  # the cases on the workers, else the one case's diagnosis
+    jobs = [(case, nominal, noise, 1 if in_parallel else workers, candidates) for case in pending]
+    with WorkerPool(model, workers if in_parallel else 1, cluster) as pool:
         for finished, (i, result, error) in enumerate(pool.completed(_case_job, jobs), 1):
             case = pending[i]
             row, diagnosis = result if error is None else (_error_row(case, f"worker lost: {type(error).__name__}: {error}"), None)

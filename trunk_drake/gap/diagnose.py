@@ -16,12 +16,11 @@ Method (the stages are modules of this package):
    (`screen`): the diagram is linearised once around the nominal operating point and a
    candidate's prediction is the current model's simulation plus the linear model's relative
    change at the excited lines (amplitude-dependent laws linearised over each trial's own
-   range), so all candidates are screened in seconds. Every candidate above the threshold is
-   then simulated at three starts (its linear fit; the effect's linear fit and the catalogue's
-   start with the current gains; near the reflexes' kinks the linear change can be 15-65 % off
-   and the linear fit far from the truth), and the best `refine` of that check are refitted and scored with nonlinear
-   simulations; forward selection adds the
-   best effect while its own dBIC passes and it beats the gains refitted along as many further
+   range), so all candidates are screened in seconds. The best `check` candidates above the
+   threshold are then simulated at three starts (its linear fit; the effect's linear fit and the
+   catalogue's start with the current gains; near the reflexes' kinks the linear change can be
+   15-65 % off and the linear fit far from the truth), and the best `refine` of that check are
+   refitted and scored with nonlinear simulations; forward selection adds the best effect while its own dBIC passes and it beats the gains refitted along as many further
    directions (the gain rival), the selected effects and the gains are refitted jointly, and
    backward steps drop an effect that no longer earns its place. Finally the gains are refitted
    along further directions while each passes as an effect would.

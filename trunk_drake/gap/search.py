@@ -4,7 +4,7 @@ nonlinear refits of the best, and forward/backward selection on held-out evidenc
 Every decision is one effect's own held-out dBIC against the model without it:
 dBIC = chi2_test(without) - chi2_test(with) - k ln N, claimed above `threshold`. Forward steps
 screen every remaining candidate added to the current model (linearly, around the current
-model's simulation), check every candidate above the threshold with nonlinear simulations at
+model's simulation), check the best `check` of them above the threshold with nonlinear simulations at
 three starts (its linear fit, and the effect's linear fit or the catalogue's start with the
 current gains), refine the best `refine` of that check with nonlinear simulations (the
 candidate's parameters and the gains, against the current model with its gains refitted as
@@ -170,12 +170,11 @@ class _Search:
         """The best `check` screened rows above the threshold (`rows` come sorted by linear dBIC), each simulated
         (nonlinear) at three points - its linear fit, the effect's linear fit with `current`'s gains, and the
         catalogue's start with `current`'s gains - the best on the training halves kept as the row's start, and
-        the rows re-sorted by that checked dBIC. Near the
-        reflexes' kinks the linear model's predicted change can be 15-65 % off (slower activation: about
-        100 %), enough to misrank candidates, and its fit can be far from the truth: on
-        trunk_in_space_gain0.15_delay0.15 it fitted gain 0.54 and delay 87 ms (truth 0.15, 150 ms), checked at
-        dBIC -61,751 with its gains, while a refit from the catalogue's start reaches the noise floor. A
-        simulation is exact. The refits then start from simulations already made."""
+        the rows re-sorted by that checked dBIC. Near the reflexes' kinks the linear model's predicted change
+        can be 15-65 % off (slower activation: about 100 %), enough to misrank candidates, and its fit can be
+        far from the truth: on trunk_in_space_gain0.15_delay0.15 it fitted gain 0.54 and delay 87 ms (truth
+        0.15, 150 ms), checked at dBIC -61,751 with its gains, while a refit from the catalogue's start
+        reaches the noise floor. A simulation is exact. The refits then start from simulations already made."""
         checked = [r for r in rows if "linear_fit" in r and r["linear_delta_bic"] > self.settings.threshold][:self.settings.check]
         rank, n = self.space.rank, current.x.size
         points, effects = [], []

@@ -225,7 +225,7 @@ def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_
         """Forward differences around x, every point on the step sequences of x's own run."""
         x = np.asarray(x, float)
         r0, engaged, steps = evaluate_many([x])[0]
-        on = (x.tobytes(), None) if all(s is not None for s in steps) else None
+        on = replay_key((x.tobytes(),), None) if all(s is not None for s in steps) else None
         active = np.concatenate([engaged, np.ones(len(layout.groups), dtype=bool)])  # kp columns, then kv
         return finite_difference_jacobian(lambda points: [r for r, _, _ in evaluate_many(points, "Jacobian", on)], x, fd_step,
                                           upper=hi, columns=np.flatnonzero(active), r0=r0)
