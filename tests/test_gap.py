@@ -171,8 +171,9 @@ def test_diagnosis_names_withheld_damping_and_shrinks_the_gap(model, tmp_path):
 
 
 def test_an_effect_no_better_than_more_gain_directions_is_not_claimed():
-    """The search's gain rival: an effect of k parameters is claimed only when it beats the current
-    model with its gains refitted along k more directions by the threshold (held-out chi2, same k)."""
+    """The search's gain rival and nested test: an effect of k parameters is claimed only when it beats the
+    current model with its gains refitted along k more directions by the threshold (held-out chi2, same k),
+    and when it still passes as dBIC on top of the gains widened as far as they pass."""
     from types import SimpleNamespace
 
     from trunk_drake.gap.catalogue import effect
@@ -180,13 +181,14 @@ def test_an_effect_no_better_than_more_gain_directions_is_not_claimed():
     from trunk_drake.gap.space import Fit, SearchSpace
     from trunk_drake.optim.gains import GainLayout
 
-    class Fitter:  # the gains along one more direction reach `rival` on the held-out halves
-        def __init__(self, rival):
-            self.rival, self.spaces = rival, []
+    class Fitter:  # the gains along one more direction reach `rival`; an effect on top of them `nested` (held-out)
+        def __init__(self, rival, nested):
+            self.rival, self.nested, self.spaces = rival, nested, []
 
         def fit(self, effects, x0, free, space=None):
             self.spaces.append(space)
-            return Fit(tuple(e.name for e in effects), np.asarray(x0, float), 0.0, self.rival, {}, outputs=[])
+            chi2 = self.nested if effects else self.rival
+            return Fit(tuple(e.name for e in effects), np.asarray(x0, float), 0.0, chi2, {}, outputs=[])
 
     layout = GainLayout(("kp.sacrospinalis", "kv.sacrospinalis", "kp.psoas_major"))
     space = SearchSpace(TrunkOptions(), layout, np.eye(3)[:, :2])
@@ -195,16 +197,21 @@ def test_an_effect_no_better_than_more_gain_directions_is_not_claimed():
     delay, mass = effect("reflex_delay"), effect("upper_body_mass")
     fits = {"reflex_delay": Fit(("reflex_delay",), np.zeros(3), 0.0, 1300.0, {}),
             "upper_body_mass": Fit(("upper_body_mass",), np.zeros(3), 0.0, 1400.0, {})}
-    for rival, claimed in ((1350.0, "reflex_delay"), (1295.0, None)):
-        fitter = Fitter(rival)
+    for rival, nested, claimed in ((1350.0, 1300.0, "reflex_delay"), (1295.0, 1290.0, None), (1350.0, 1345.0, None)):
+        fitter = Fitter(rival, nested)
         search = _Search(space, SimpleNamespace(trials=[trial]), fitter, (delay, mass), Settings(), np.eye(3)[:, 2:], None)
         chosen, tried = search.claim(current, fits)
         assert (chosen and chosen["effect"]) == claimed
         assert tried[0]["effect"] == "reflex_delay" and tried[0]["beats_gain_rival_by"] == pytest.approx(rival - 1300.0)
-        assert len(fitter.spaces) == 1 and fitter.spaces[0].rank == 3  # one rival per k, along the third direction
-    assert [t["effect"] for t in tried] == ["reflex_delay", "upper_body_mass"]  # the next candidate is tried too
+        assert fitter.spaces[0].rank == 3  # one rival per k, along the third direction
+        if rival - 1300.0 > search.settings.threshold:  # past the rival: the delay refitted on the widened gains
+            assert fitter.spaces[-1].rank == 3 and tried[0]["on_widened_gains"] == {
+                "delta_bic": pytest.approx(rival - nested - search.penalty), "directions": 1}
+        else:
+            assert len(fitter.spaces) == 1 and "on_widened_gains" not in tried[0]
+        assert [t["effect"] for t in tried] == (["reflex_delay"] if claimed else ["reflex_delay", "upper_body_mass"])
     fit, wider, dbic = search.widen(current)  # no claim: the gains along the third direction pass as an effect would
-    assert wider.rank == 3 and fit.heldout_chi2 == 1295.0 and dbic == pytest.approx(1500.0 - 1295.0 - search.penalty)
+    assert wider.rank == 3 and fit.heldout_chi2 == 1350.0 and dbic == pytest.approx(1500.0 - 1350.0 - search.penalty)
 
 
 def test_the_check_also_simulates_a_linear_fit_with_the_current_gains():

@@ -98,6 +98,9 @@ def _step(step: dict) -> str:
         values = "; ".join(f"{n}: " + ", ".join(f"{k} = {v:.4g}" for k, v in vals.items()) for n, vals in step["values"].items())
         rival = step.get("beats_gain_rival_by")
         against = "" if rival is None else f", better than refitting the gains along as many more directions by {rival:.1f}"
+        nested = step.get("on_widened_gains")
+        if nested:
+            against += f"; dBIC {nested['delta_bic']:.1f} on top of the gains widened by {nested['directions']} direction(s)"
         return f"add **{step['effect']}** (dBIC {step['delta_bic']:.1f}{against}); joint refit of {model}: {values}"
     if step["action"] == "gains":
         return (f"gains refitted along {step['directions']} directions (dBIC {step['delta_bic']:.1f}): mis-set gains beyond "
@@ -107,10 +110,22 @@ def _step(step: dict) -> str:
         return (f"drop **{step['effect']}**" if step["action"] == "drop" else "keep all") + f" (own dBIC: {own}); model: {model}"
     matched = step.get("matched_by_gains") or []
     if matched:
-        names = ", ".join(f"{m['effect']} (dBIC {m['delta_bic']:.1f}, {m['beats_gain_rival_by']:+.1f} against the gains)" for m in matched)
-        return f"stop: {names} no better than the gains refitted along as many more directions (mis-set gains explain as much); model: {model}"
+        names = ", ".join(f"{m['effect']} (dBIC {m['delta_bic']:.1f}; {_against_gains(m)})" for m in matched)
+        return f"stop: {names}: mis-set gains explain as much; model: {model}"
     best = f"best remaining {step['best_candidate']} (dBIC {step['delta_bic']:.1f})" if step["best_candidate"] else "no candidate left"
     return f"stop: {best} does not pass; model: {model}"
+
+
+def _against_gains(tried: dict) -> str:
+    """How a candidate fared against the gains: its margin over the gains along as many more directions, and
+    its dBIC on top of the gains widened as far as they pass."""
+    parts = []
+    if tried.get("beats_gain_rival_by") is not None:
+        parts.append(f"{tried['beats_gain_rival_by']:+.1f} against the gains along as many more directions")
+    nested = tried.get("on_widened_gains")
+    if nested:
+        parts.append(f"dBIC {nested['delta_bic']:.1f} on top of the gains widened by {nested['directions']} direction(s)")
+    return ", ".join(parts)
 
 
 def _plot_where(d, path) -> Path:
