@@ -67,3 +67,15 @@ def test_cases_start_with_their_classes_mixed_and_a_folder_refuses_other_code(tm
     benchmark._check_settings(tmp_path / "settings.json", settings)
     with pytest.raises(ValueError, match="code: a there, b now"):
         benchmark._check_settings(tmp_path / "settings.json", {**settings, "code": "b"})
+
+
+def test_the_code_fingerprint_ignores_docstrings_and_comments_only(tmp_path):
+    from trunk_drake.metadata import source_fingerprint
+
+    module = tmp_path / "m.py"
+    module.write_text('"""Doc."""\n\ndef f(x):\n    """Doc."""\n    return x + 1\n')
+    before = source_fingerprint(tmp_path)
+    module.write_text('"""Other doc."""\n\n\ndef f(x):  # a comment\n    """Another doc, longer."""\n    return x + 1\n')
+    assert source_fingerprint(tmp_path) == before
+    module.write_text('def f(x):\n    return x + 2\n')
+    assert source_fingerprint(tmp_path) != before

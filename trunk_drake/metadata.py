@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ast
 import datetime
 import hashlib
 import platform
@@ -32,14 +33,26 @@ def package_versions() -> dict[str, str]:
     return out
 
 
-def source_fingerprint() -> str:
-    """SHA-256 (16 hex digits) of trunk-drake's own Python source: the code a result was computed with."""
-    root = Path(__file__).parent
+def source_fingerprint(root: Path | None = None) -> str:
+    """SHA-256 (16 hex digits) of trunk-drake's own Python code (`root`: the package folder): the code a
+    result was computed with. Docstrings, comments and layout do not count, so editing them keeps a
+    long run resumable."""
+    root = Path(__file__).parent if root is None else Path(root)
     h = hashlib.sha256()
     for path in sorted(root.rglob("*.py")):
         h.update(str(path.relative_to(root)).encode())
-        h.update(path.read_bytes())
+        h.update(ast.dump(_without_docstrings(ast.parse(path.read_bytes()))).encode())
     return h.hexdigest()[:16]
+
+
+def _without_docstrings(tree: ast.AST) -> ast.AST:
+    """`tree` with the docstring of every module, class and function removed."""
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and node.body:
+            first = node.body[0]
+            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(first.value.value, str):
+                node.body = node.body[1:] or [ast.Pass()]
+    return tree
 
 
 def model_fingerprint(model) -> str:

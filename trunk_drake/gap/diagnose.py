@@ -185,7 +185,8 @@ def _verdict(found: SearchResult, left: dict, shrink: dict, on_bounds: list[str]
     windows = sorted({w for v in left["windows_s"].values() for w in v})
     if windows:
         where.append(f"windows starting at {', '.join(f'{w:.0f}' for w in windows)} s")
-    return (f"an unexplained gap remains: {100 * share:.0f} % of the gap above the noise floor"
+    percent = f"{100 * share:.0f}" if share >= 0.1 else f"{100 * share:.1g}"  # 0.4 %, not 0 %
+    return (f"an unexplained gap remains: {percent} % of the gap above the noise floor"
             + (f", at {'; '.join(where)}" if where else "")
             + f" (held-out chi2 per sample {max(left['chi2_per_sample'].values()):.2f}, whiteness p = {left['ljung_box']['p']:.2g}); "
             + ("no catalogued effect explains it; " if not found.selected else "no catalogued effect explains the rest; ")
