@@ -10,8 +10,10 @@ current gains), refine the best `refine` of that check with nonlinear simulation
 candidate's parameters and the gains, against the current model with its gains refitted as
 long) and add the best whose dBIC passes and which beats the gain rival: the current model with
 its gains refitted along as many further directions as the effect has parameters (the next
-singular directions of the gains). An effect that does no better than that is as well explained by
-mis-set gains and is not claimed. The accepted model is then refitted jointly (gains and all effects).
+singular directions of the gains), and which passes the nested test: refitted with the gains widened
+as far as they pass (`widen`), it still earns its own dBIC. An effect that fails either is as well
+explained by mis-set gains and is not claimed (an effect of one parameter can stand in for two gain
+directions). The accepted model is then refitted jointly (gains and all effects).
 Backward steps refit the model without each selected effect and drop the weakest while it does not
 pass. At the end, the gains of the selected model are refitted along further directions while each
 passes as an effect would (held-out dBIC): the final model then explains mis-set gains beyond the
