@@ -20,8 +20,10 @@ Method (the stages are modules of this package):
    threshold are then simulated at three starts (its linear fit; the effect's linear fit and the
    catalogue's start with the current gains; near the reflexes' kinks the linear change can be
    15-65 % off and the linear fit far from the truth), and the best `refine` of that check are
-   refitted and scored with nonlinear simulations; forward selection adds the best effect while its own dBIC passes, it beats the gains refitted along as many further
-   directions (the gain rival) and it still passes on top of the gains widened as far as they pass (the nested test); the selected effects and the gains are refitted jointly, and
+   refitted and scored with nonlinear simulations; forward selection adds the best effect while
+   its own dBIC passes, it beats the gains refitted along as many further directions (the gain
+   rival) and it still passes on top of the gains widened as far as they pass (the nested test);
+   the selected effects and the gains are refitted jointly, and
    backward steps drop an effect that no longer earns its place. Finally the gains are refitted
    along further directions while each passes as an effect would.
 3. *How far it shrinks* (`measures`): 1 - VAF and the FRF error on the held-out halves before
