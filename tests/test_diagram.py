@@ -1,5 +1,7 @@
 """Diagram-level checks: analytic pendulum, energy conservation, the thesis' qualitative results."""
 
+import gc
+
 import numpy as np
 import pytest
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
@@ -12,6 +14,7 @@ from trunk_drake.model.spec import BodySpec, JointSpec, ModelSpec, MuscleSpec, P
 from trunk_drake.muscle import thelen
 from trunk_drake.signals import make_multisine
 from trunk_drake.simulation import SimulationError, simulate
+from trunk_drake.systems.muscles import MuscleSystem
 
 G = 9.81
 MASS, COM = 1.5, np.array([0.0, 0.0, -0.3])  # pendulum hanging from a hinge about x
@@ -71,6 +74,34 @@ def test_one_joint_one_muscle_pendulum_matches_independent_integration():
     assert np.ptp(theta_ref) > 0.2, "the muscle must swing the pendulum noticeably"
     np.testing.assert_allclose(result.q[:, 0], theta_ref, atol=2e-4)
     np.testing.assert_allclose(result.activation[:, 0], reference(result.time)[2], atol=1e-5)
+
+
+class FailingSignal:
+    """A platform signal whose evaluation fails after 0.1 s: a simulation that ends in an error."""
+
+    def evaluate(self, t):
+        if np.max(t) > 0.1:
+            raise ValueError("the platform signal failed at 0.1 s")
+        zero = np.zeros_like(np.asarray(t, float))
+        return zero, zero, zero
+
+
+def test_simulations_free_their_diagrams_and_leave_the_model_reusable(sagittal):
+    """pydrake keeps every diagram holding a Python system alive (drake #22515): `simulate` releases its own,
+    also when the simulation fails."""
+    model = td.load_model(dofs="all", spec=pendulum_spec())
+
+    def muscle_systems_alive():
+        gc.collect()
+        return sum(type(item) is MuscleSystem for item in gc.get_objects())
+
+    before = muscle_systems_alive()
+    runs = [simulate(model, duration=0.2, perturbation=None, feedforward=np.array([0.3])) for _ in range(3)]
+    assert muscle_systems_alive() == before
+    np.testing.assert_array_equal(runs[0].q, runs[2].q)
+    with pytest.raises(ValueError, match="failed at 0.1 s"):
+        simulate(sagittal, duration=0.2, perturbation=FailingSignal())
+    assert muscle_systems_alive() == before
 
 
 def test_bare_plant_conserves_energy():

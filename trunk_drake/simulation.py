@@ -13,7 +13,7 @@ import numpy as np
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import EventStatus
 
-from trunk_drake.diagram import SLIDING_PELVIS, TrunkDiagram, TrunkOptions, build_trunk_diagram
+from trunk_drake.diagram import SLIDING_PELVIS, TrunkDiagram, TrunkOptions, build_trunk_diagram, release
 from trunk_drake.metadata import run_metadata
 
 STIFF_INTEGRATOR = "radau3"  # L-stable: independent vertebrae's damping modes reach ~4000 1/s; compliant tendons
@@ -284,18 +284,13 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
     _set_initial_muscle_state(td, simulator.get_mutable_context())
     simulator.set_monitor(_monitor(td))
 
-    wall = _time.perf_counter()
     try:
-        simulator.Initialize()
-        if steps is None:
-            _advance(simulator, duration, progress)
-        else:
-            for t in steps[1:]:
-                simulator.AdvanceTo(t)
-    except RuntimeError as err:
-        raise SimulationError(str(err)) from None
-    wall = _time.perf_counter() - wall
-    return _collect(td, simulator, wall, integrator, accuracy, signal, seed, bandwidth, duration, log_rate)
+        wall = _time.perf_counter()
+        _run(simulator, duration, steps, progress)
+        wall = _time.perf_counter() - wall
+        return _collect(td, simulator, wall, integrator, accuracy, signal, seed, bandwidth, duration, log_rate)
+    finally:
+        release(td.diagram)
 
 
 def _replayable(steps, duration: float) -> np.ndarray:
@@ -329,6 +324,19 @@ def _perturbation(perturbation, bandwidth, seed, lowpass_hz=None):
     if not hasattr(perturbation, "evaluate"):
         raise ValueError("perturbation must have evaluate(t) -> (x, v, a)")
     return perturbation
+
+
+def _run(simulator, duration, steps, progress) -> None:
+    """Run to `duration`, on the step times `steps` if given; a failure raises SimulationError."""
+    try:
+        simulator.Initialize()
+        if steps is None:
+            _advance(simulator, duration, progress)
+        else:
+            for t in steps[1:]:
+                simulator.AdvanceTo(t)
+    except RuntimeError as err:
+        raise SimulationError(str(err)) from None
 
 
 def _advance(simulator, duration, progress):

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.special import ndtr
 
-from trunk_drake.diagram import EXTENSOR_GROUPS, FLEXOR_GROUPS, TrunkOptions, _group_mask, build_trunk_diagram
+from trunk_drake.diagram import EXTENSOR_GROUPS, FLEXOR_GROUPS, TrunkOptions, _group_mask, build_trunk_diagram, release
 from trunk_drake.muscle import thelen
 from trunk_drake.optim.least_squares import finite_difference_jacobian
 from trunk_drake.systems.muscles import muscle_parameters
@@ -301,7 +301,7 @@ def linearize(model, options: TrunkOptions, op: OperatingPoint, seat: bool = Fal
     l_set = td.reflex.l_desired
     u0 = np.asarray(u0, float)
     srs_unit = np.asarray(a0, float) * kin.active_force_length * f_max * kin.cos_pennation**2 / params.optimal_fiber_length
-    return LinearTrunk(
+    linear = LinearTrunk(
         coordinates=list(base.coordinates), levels=base.level_matrix, dvdq=jac[vrows, :nq], dvdv=jac[vrows, nq:2 * nq],
         dvda=jac[vrows, arows], m_inv=np.linalg.inv(plant.CalcMassMatrix(plant_ctx)), b_acc=b_acc,
         pelvis=base.coordinates.index("pelvis_tx") if seat else None, rate=-np.diag(jac[arows, arows]),
@@ -314,6 +314,8 @@ def linearize(model, options: TrunkOptions, op: OperatingPoint, seat: bool = Fal
         extensors=_group_mask(base, EXTENSOR_GROUPS), flexors=_group_mask(base, FLEXOR_GROUPS),
         model=model, options=options, op=op, srs_stiffness=R.T @ (srs_unit[:, None] * R), vdot=f(x0)[vrows],
     )
+    release(td.diagram)
+    return linear
 
 
 def state_jacobian(td, x0, h: float = 1e-6, context=None) -> np.ndarray:

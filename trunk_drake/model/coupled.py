@@ -23,6 +23,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import LeafSystem
+from trunk_drake.systems.weak import weak
 
 
 class CoupledPlant(LeafSystem):
@@ -51,11 +52,11 @@ class CoupledPlant(LeafSystem):
         #                         perturb the other systems' states many times at one plant state
         self.DeclareContinuousState(self._n, self._n, 0)
         self._applied = self.DeclareVectorInputPort("applied_generalized_force", self._n)
-        self._state = self.DeclareVectorOutputPort("state", 2 * self._n, self._copy_state,
+        self._state = self.DeclareVectorOutputPort("state", 2 * self._n, weak(self._copy_state),
                                                    prerequisites_of_calc={self.xc_ticket()})
         n_bodies = plant.num_bodies()
         self._poses = self.DeclareAbstractOutputPort(
-            "body_poses", lambda: AbstractValue.Make([RigidTransform()] * n_bodies), self._calc_poses,
+            "body_poses", lambda: AbstractValue.Make([RigidTransform()] * n_bodies), weak(self._calc_poses),
             prerequisites_of_calc={self.xc_ticket()})
         self.set_name("coupled_plant")
 

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from trunk_drake.diagram import TrunkOptions, build_trunk_diagram, rotation_coordinates
+from trunk_drake.diagram import TrunkOptions, build_trunk_diagram, release, rotation_coordinates
 from trunk_drake.gap.linear import time_derivatives
 from trunk_drake.muscle import thelen
 from trunk_drake.optim.stability_math import (
@@ -186,11 +186,14 @@ def stability(model, options: TrunkOptions | None = None, q=None, critical: bool
         return StabilityResult(list(model.coordinates), posture, posture, None, None, static, None, [],
                                options_json, time.perf_counter() - start, run_metadata(model))
     loop = ClosedLoop(model, opts)
-    posture = loop.posture(q)
-    x_eq, found, unbalanced = loop.equilibrium(posture)
-    static = loop.static(x_eq)
-    dynamic = loop.dynamic(x_eq)
-    found_critical = loop.critical_values({**RANGES, **(ranges or {})}, posture) if critical else []
+    try:
+        posture = loop.posture(q)
+        x_eq, found, unbalanced = loop.equilibrium(posture)
+        static = loop.static(x_eq)
+        dynamic = loop.dynamic(x_eq)
+        found_critical = loop.critical_values({**RANGES, **(ranges or {})}, posture) if critical else []
+    finally:
+        release(loop.td.diagram)
     return StabilityResult(loop.coordinates, posture, loop.q_of(x_eq), found, unbalanced, static, dynamic, found_critical,
                            options_json, time.perf_counter() - start, run_metadata(model))
 

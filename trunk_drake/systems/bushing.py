@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
+from trunk_drake.systems.weak import weak
 
 DEFAULT_STIFFNESS = 100.0  # Nm/rad, seed Table 3.1 (Markolf), see models/reference_values.toml
 DEFAULT_DAMPING = 7.5  # Nms/rad, seed Table 3.1
@@ -35,7 +36,7 @@ class IntervertebralBushings(LeafSystem):
             raise ValueError("bushing stiffness, damping and cubic coefficient must be >= 0")
         self._nq = nq
         self.DeclareVectorInputPort("plant_state", nq + nv)
-        self.DeclareVectorOutputPort("generalized_force", nv, self._calc)
+        self.DeclareVectorOutputPort("generalized_force", nv, weak(self._calc))
 
     def moment(self, q, v) -> np.ndarray:
         """The moment of each level's bushing (Nm) at state (q, v)."""

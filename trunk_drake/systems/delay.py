@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import EventStatus, LeafSystem
+from trunk_drake.systems.weak import weak
 
 
 @dataclass
@@ -35,10 +36,10 @@ class TransportDelay(LeafSystem):
         self.delay = float(delay)
         self._u = self.DeclareVectorInputPort("u", size)
         self._history = self.DeclareAbstractState(AbstractValue.Make(History()))
-        self.DeclareVectorOutputPort("y", size, self._calc,
+        self.DeclareVectorOutputPort("y", size, weak(self._calc),
                                      prerequisites_of_calc={self.time_ticket(), self.abstract_state_ticket(self._history)})
-        self.DeclareInitializationUnrestrictedUpdateEvent(self._reset)
-        self.DeclarePerStepUnrestrictedUpdateEvent(self._record)
+        self.DeclareInitializationUnrestrictedUpdateEvent(weak(self._reset))
+        self.DeclarePerStepUnrestrictedUpdateEvent(weak(self._record))
 
     def _reset(self, context, state):
         state.get_mutable_abstract_state(self._history).set_value(History())

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
+from trunk_drake.systems.weak import weak
 
 
 class GolgiTendonFeedback(LeafSystem):
@@ -24,7 +25,7 @@ class GolgiTendonFeedback(LeafSystem):
         self._f0 = np.asarray(reference_force, float)
         n = self._f0.size
         self.DeclareVectorInputPort("tendon_force", n)
-        self.DeclareVectorOutputPort("feedback", n, self._calc)
+        self.DeclareVectorOutputPort("feedback", n, weak(self._calc))
 
     def _calc(self, context, output):
         output.SetFromVector(-self._scale * (self.get_input_port(0).Eval(context) - self._f0))
@@ -46,7 +47,7 @@ class TrunkInSpaceFeedback(LeafSystem):
         self._flex = np.asarray(flexors, float)
         self._idx = np.asarray(angle_indices, int)
         self.DeclareVectorInputPort("plant_state", n_state)
-        self.DeclareVectorOutputPort("feedback", self._ext.size, self._calc)
+        self.DeclareVectorOutputPort("feedback", self._ext.size, weak(self._calc))
 
     def _calc(self, context, output):
         theta = float(self.get_input_port(0).Eval(context)[self._idx].sum())
@@ -67,7 +68,7 @@ class SeatCompliance(LeafSystem):
         self._signal, self._k, self._c, self._i, self._nq = signal, float(stiffness), float(damping), pelvis_index, nq
         self._nv = nv
         self.DeclareVectorInputPort("plant_state", nq + nv)
-        self.DeclareVectorOutputPort("generalized_force", nv, self._calc_force)
+        self.DeclareVectorOutputPort("generalized_force", nv, weak(self._calc_force))
 
     def _calc_force(self, context, output):
         x = self.get_input_port(0).Eval(context)

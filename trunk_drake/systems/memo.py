@@ -13,6 +13,8 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import ValueProducer
 
+from trunk_drake.systems.weak import weak
+
 
 class Memo:
     """The last key and the result computed for it."""
@@ -30,7 +32,9 @@ def _comparable(key):
 
 def declare_memo(system, description: str, key, compute, prerequisites):
     """Declare a cache entry of `system` whose ``Eval(context)`` returns ``compute(context, key(context))``,
-    recomputed only when ``key(context)`` differs from the key of the last computation."""
+    recomputed only when ``key(context)`` differs from the key of the last computation; `key` and
+    `compute` are methods of `system` (held weakly: `weak`)."""
+    key, compute = weak(key), weak(compute)
 
     def calc(context, value):
         memo = value.get_mutable_value()

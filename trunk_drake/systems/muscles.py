@@ -11,6 +11,7 @@ from trunk_drake.muscle import thelen
 from trunk_drake.muscle.short_range import ShortRangeStiffness
 from trunk_drake.muscle.thelen import MuscleParameters, ThelenConstants
 from trunk_drake.systems.memo import declare_memo
+from trunk_drake.systems.weak import weak
 
 TENDON_MODES = ("rigid", "compliant")
 
@@ -69,22 +70,21 @@ class MuscleSystem(LeafSystem):
         self._x0 = x0
         self._u = self.DeclareVectorInputPort("excitation", n)
         self._path = self.DeclareAbstractInputPort("path_state", AbstractValue.Make(empty_path_state(model)))
-        self._kin = declare_memo(self, "rigid-tendon fiber kinematics", self._path.Eval,  # the path object: by identity
-                                 lambda c, path: thelen.rigid_kinematics(path.lengths, path.velocities, self.params, self.constants),
-                                 {self._path.ticket()})
+        self._kin = declare_memo(self, "rigid-tendon fiber kinematics", self._eval_path,  # the path object: by identity
+                                 self._rigid_kinematics, {self._path.ticket()})
         state_and_path = {self.all_state_ticket(), self._path.ticket()}
         template = thelen.rigid_tendon(self._x0[:n], self.params.tendon_slack_length + self.params.optimal_fiber_length, 0.0, self.params, self.constants)
         self._state_port = self.DeclareAbstractOutputPort(
-            "muscle_state", lambda: AbstractValue.Make(template), self._calc_state, prerequisites_of_calc=state_and_path
+            "muscle_state", lambda: AbstractValue.Make(template), weak(self._calc_state), prerequisites_of_calc=state_and_path
         )
         self.DeclareVectorOutputPort(
-            "activation", n, lambda c, o: o.SetFromVector(c.get_continuous_state_vector().CopyToVector()[:n]),
+            "activation", n, lambda c, o: o.SetFromVector(c.get_continuous_state_vector().CopyToVector()[:n]),  # no self
             prerequisites_of_calc={self.all_state_ticket()},
         )
-        self.DeclareVectorOutputPort("tendon_force", n, lambda c, o: o.SetFromVector(self._tendon_force(c)), prerequisites_of_calc=state_and_path)
+        self.DeclareVectorOutputPort("tendon_force", n, weak(self._calc_tendon_force), prerequisites_of_calc=state_and_path)
         for name in ("normalized_fiber_length", "normalized_fiber_velocity", "fiber_length"):
             self.DeclareVectorOutputPort(name, n, self._field(name), prerequisites_of_calc=state_and_path)
-        self.DeclareVectorOutputPort("generalized_force", nv, self._calc_generalized_force, prerequisites_of_calc=state_and_path)
+        self.DeclareVectorOutputPort("generalized_force", nv, weak(self._calc_generalized_force), prerequisites_of_calc=state_and_path)
 
     @property
     def default_state(self) -> np.ndarray:
@@ -141,9 +141,20 @@ class MuscleSystem(LeafSystem):
 
     def _field(self, name):
         """Fiber kinematics: from the path alone with rigid tendons, else from the full state."""
-        if self.tendon == "rigid" and name != "fiber_length":
-            return lambda c, o: o.SetFromVector(getattr(self._kin.Eval(c), name))
-        return lambda c, o: o.SetFromVector(getattr(self.muscle_state(c), name))
+        source = weak(self._rigid_fiber if self.tendon == "rigid" and name != "fiber_length" else self.muscle_state)
+        return lambda c, o: o.SetFromVector(getattr(source(c), name))
+
+    def _eval_path(self, context):
+        return self._path.Eval(context)
+
+    def _rigid_kinematics(self, context, path):
+        return thelen.rigid_kinematics(path.lengths, path.velocities, self.params, self.constants)
+
+    def _rigid_fiber(self, context):
+        return self._kin.Eval(context)
+
+    def _calc_tendon_force(self, context, output):
+        output.SetFromVector(self._tendon_force(context))
 
     def _calc_generalized_force(self, context, output):
         output.SetFromVector(self._path.Eval(context).moment_arms.T @ self._tendon_force(context))

@@ -8,6 +8,7 @@ from pydrake.systems.framework import LeafSystem
 
 from trunk_drake.model.paths import PathState
 from trunk_drake.systems.memo import declare_memo
+from trunk_drake.systems.weak import weak
 
 
 class MusclePathSystem(LeafSystem):
@@ -23,10 +24,16 @@ class MusclePathSystem(LeafSystem):
         self._model = model
         self._nq = model.plant.num_positions()
         self._state = self.DeclareVectorInputPort("plant_state", self._nq + model.plant.num_velocities())
-        self._memo = declare_memo(self, "path kinematics", self._state.Eval, self._compute, {self._state.ticket()})
+        self._memo = declare_memo(self, "path kinematics", self._eval_state, self._compute, {self._state.ticket()})
         empty = PathState(np.zeros(model.n_muscles), np.zeros((model.n_muscles, self._nq)), np.zeros(model.n_muscles))
         self.DeclareAbstractOutputPort("path_state", lambda: AbstractValue.Make(empty),
-                                       lambda c, o: o.set_value(self._memo.Eval(c)), prerequisites_of_calc={self._memo.ticket()})
+                                       weak(self._calc_path_state), prerequisites_of_calc={self._memo.ticket()})
+
+    def _eval_state(self, context):
+        return self._state.Eval(context)
+
+    def _calc_path_state(self, context, output):
+        output.set_value(self._memo.Eval(context))
 
     def _compute(self, context, x) -> PathState:
         if not np.isfinite(x.sum()):  # any NaN or inf; Drake would abort on non-finite positions

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
+from trunk_drake.systems.weak import weak
 
 
 class PrescribedPelvisMotion(LeafSystem):
@@ -22,7 +23,7 @@ class PrescribedPelvisMotion(LeafSystem):
         self._dir = np.asarray(direction, dtype=float)
         self._nq, nv = model.plant.num_positions(), model.plant.num_velocities()
         self._state = self.DeclareVectorInputPort("plant_state", self._nq + nv)
-        self.DeclareVectorOutputPort("generalized_force", nv, self._calc_force)
+        self.DeclareVectorOutputPort("generalized_force", nv, weak(self._calc_force))
 
     def _calc_force(self, context, output):
         q = self._state.Eval(context)[: self._nq]
@@ -39,7 +40,7 @@ class PelvisForcePerturbation(LeafSystem):
     def __init__(self, nv: int, pelvis_index: int, signal, pelvis_mass: float):
         super().__init__()
         self._signal, self._nv, self._i, self._mass = signal, nv, pelvis_index, float(pelvis_mass)
-        self.DeclareVectorOutputPort("generalized_force", nv, self._calc_force)
+        self.DeclareVectorOutputPort("generalized_force", nv, weak(self._calc_force))
 
     def _calc_force(self, context, output):
         tau = np.zeros(self._nv)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import Adder, Saturation
+from trunk_drake.systems.weak import weak
 
 
 def gains_by_group(model, values: dict[str, float], default: float = 0.0) -> np.ndarray:
@@ -57,7 +58,7 @@ class StretchReflex(LeafSystem):
         self.l_desired = np.broadcast_to(np.asarray(l_desired, float), (n,)).copy()
         self._ln = self.DeclareVectorInputPort("normalized_fiber_length", n)
         self._vn = self.DeclareVectorInputPort("normalized_fiber_velocity", n)
-        self.DeclareVectorOutputPort("feedback", n, self._calc)
+        self.DeclareVectorOutputPort("feedback", n, weak(self._calc))
 
     def feedback(self, norm_length, norm_velocity) -> np.ndarray:
         return self.kp * np.maximum(norm_length - self.l_desired, 0.0) + self.kv * np.maximum(norm_velocity, 0.0)
