@@ -262,12 +262,20 @@ def linearize(model, options: TrunkOptions, op: OperatingPoint, seat: bool = Fal
     ``seat=True`` the pelvis slides freely (for pelvis="seat")."""
     if options.srs is not None:
         raise ValueError("linearise without short-range stiffness (srs=None): the linear model adds it per frequency")
-    a0, u0 = op.a, op.u
     open_loop = dataclasses.replace(options, kp=0.0, kv=0.0, gto_gain=0.0, vestibular_gain=0.0, reflex_delay=0.0,
-                                    vestibular_delay=0.0, feedforward=np.asarray(u0, float),
+                                    vestibular_delay=0.0, feedforward=np.asarray(op.u, float),
                                     pelvis="force" if seat else "prescribed", pelvis_mass=_sacrum_mass(model))
     signal = ConstantAcceleration()
     td = build_trunk_diagram(model, open_loop, signal)
+    try:
+        return _linear_trunk(td, signal, model, options, op, seat, h)
+    finally:
+        release(td.diagram)
+
+
+def _linear_trunk(td, signal, model, options: TrunkOptions, op: OperatingPoint, seat: bool, h: float) -> LinearTrunk:
+    """The LinearTrunk of the open-loop diagram `td`, driven by the platform acceleration `signal`."""
+    a0, u0 = op.a, op.u
     base, plant, n_m = td.model, td.plant, td.muscles.n
     nq = plant.num_positions()
     q = np.linalg.pinv(base.level_matrix) @ np.asarray(op.angles, float)
@@ -301,7 +309,7 @@ def linearize(model, options: TrunkOptions, op: OperatingPoint, seat: bool = Fal
     l_set = td.reflex.l_desired
     u0 = np.asarray(u0, float)
     srs_unit = np.asarray(a0, float) * kin.active_force_length * f_max * kin.cos_pennation**2 / params.optimal_fiber_length
-    linear = LinearTrunk(
+    return LinearTrunk(
         coordinates=list(base.coordinates), levels=base.level_matrix, dvdq=jac[vrows, :nq], dvdv=jac[vrows, nq:2 * nq],
         dvda=jac[vrows, arows], m_inv=np.linalg.inv(plant.CalcMassMatrix(plant_ctx)), b_acc=b_acc,
         pelvis=base.coordinates.index("pelvis_tx") if seat else None, rate=-np.diag(jac[arows, arows]),
@@ -314,8 +322,6 @@ def linearize(model, options: TrunkOptions, op: OperatingPoint, seat: bool = Fal
         extensors=_group_mask(base, EXTENSOR_GROUPS), flexors=_group_mask(base, FLEXOR_GROUPS),
         model=model, options=options, op=op, srs_stiffness=R.T @ (srs_unit[:, None] * R), vdot=f(x0)[vrows],
     )
-    release(td.diagram)
-    return linear
 
 
 def state_jacobian(td, x0, h: float = 1e-6, context=None) -> np.ndarray:
