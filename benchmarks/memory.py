@@ -17,10 +17,10 @@ import platform
 import time
 
 import trunk_drake as td
+from trunk_drake.diagram import muscle_systems_alive
 from trunk_drake.metadata import package_versions
 from trunk_drake.optim.stability import stability
 from trunk_drake.simulation import simulate
-from trunk_drake.systems.muscles import MuscleSystem
 
 
 def rss_mb() -> float:
@@ -28,20 +28,16 @@ def rss_mb() -> float:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
-def alive_muscle_systems() -> int:
-    return sum(type(item) is MuscleSystem for item in gc.get_objects())
-
-
 def growth(work, repeats: int) -> dict:
     work()
     gc.collect()
-    before, alive_before, start = rss_mb(), alive_muscle_systems(), time.perf_counter()
+    before, alive_before, start = rss_mb(), muscle_systems_alive(), time.perf_counter()
     for _ in range(repeats):
         work()
     gc.collect()
     return {"repeats": repeats, "rss_before_mb": round(before, 1), "rss_after_mb": round(rss_mb(), 1),
             "kept_mb_per_repeat": round((rss_mb() - before) / repeats, 3),
-            "muscle_systems_kept": alive_muscle_systems() - alive_before,
+            "muscle_systems_kept": muscle_systems_alive() - alive_before,
             "wall_s_per_repeat": round((time.perf_counter() - start) / repeats, 3)}
 
 

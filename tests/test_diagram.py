@@ -1,7 +1,5 @@
 """Diagram-level checks: analytic pendulum, energy conservation, the thesis' qualitative results."""
 
-import gc
-
 import numpy as np
 import pytest
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
@@ -9,12 +7,11 @@ from pydrake.systems.framework import DiagramBuilder
 from scipy.integrate import solve_ivp
 
 import trunk_drake as td
-from trunk_drake.diagram import TrunkOptions, build_trunk_diagram
+from trunk_drake.diagram import TrunkOptions, build_trunk_diagram, muscle_systems_alive
 from trunk_drake.model.spec import BodySpec, JointSpec, ModelSpec, MuscleSpec, PathElement, SiteSpec
 from trunk_drake.muscle import thelen
 from trunk_drake.signals import make_multisine
 from trunk_drake.simulation import SimulationError, simulate
-from trunk_drake.systems.muscles import MuscleSystem
 
 G = 9.81
 MASS, COM = 1.5, np.array([0.0, 0.0, -0.3])  # pendulum hanging from a hinge about x
@@ -90,17 +87,15 @@ def test_simulations_free_their_diagrams_and_leave_the_model_reusable(sagittal):
     """pydrake keeps every diagram holding a Python system alive (drake #22515): `simulate` releases its own,
     also when the simulation fails."""
     model = td.load_model(dofs="all", spec=pendulum_spec())
-
-    def muscle_systems_alive():
-        gc.collect()
-        return sum(type(item) is MuscleSystem for item in gc.get_objects())
-
     before = muscle_systems_alive()
     runs = [simulate(model, duration=0.2, perturbation=None, feedforward=np.array([0.3])) for _ in range(3)]
     assert muscle_systems_alive() == before
     np.testing.assert_array_equal(runs[0].q, runs[2].q)
     with pytest.raises(ValueError, match="failed at 0.1 s"):
         simulate(sagittal, duration=0.2, perturbation=FailingSignal())
+    assert muscle_systems_alive() == before
+    with pytest.raises(ValueError, match="feedforward excitation must have 210 entries"):  # bad input found mid-build
+        simulate(sagittal, duration=0.2, perturbation=None, feedforward=np.zeros(3))
     assert muscle_systems_alive() == before
 
 

@@ -8,6 +8,7 @@ feed-forward co-activation, intervertebral bushings and the pelvis perturbation.
 
 from __future__ import annotations
 
+import gc
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -134,11 +135,21 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
         base = model.variant(pelvis_free=True)
     else:
         base = plant_model_for(model, "prescribed")
+    builder = DiagramBuilder()
+    try:
+        return _assemble(builder, base, opts, perturbation, pelvis_mode, log_period)
+    except BaseException:  # bad input found mid-build: free what was added, as `release` does for a diagram
+        for system in builder.GetSystems():
+            system.__dict__.clear()
+        builder.__dict__.clear()
+        raise
+
+
+def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str, log_period: float) -> TrunkDiagram:
+    """The systems of `build_trunk_diagram`, added to `builder` and connected; the built diagram."""
     plant = base.plant
     nq, nv, n = plant.num_positions(), plant.num_velocities(), base.n_muscles
     fe = rotation_coordinates(base)
-
-    builder = DiagramBuilder()
     builder.AddSystem(plant)
     paths = builder.AddNamedSystem("muscle_paths", MusclePathSystem(base))
     params = muscle_parameters(base, opts.strength_scale)
@@ -243,6 +254,13 @@ def release(diagram: Diagram) -> None:
             release(system)
         system.__dict__.clear()
     diagram.__dict__.clear()
+
+
+def muscle_systems_alive() -> int:
+    """How many MuscleSystems Python still holds after a garbage collection: unchanged by a simulation
+    once its diagram is released (`release`); tests/test_diagram.py and benchmarks/memory.py count them."""
+    gc.collect()
+    return sum(type(item) is MuscleSystem for item in gc.get_objects())
 
 
 def _connect_delayed(builder, source, destination, delay: float, name: str, size: int) -> None:

@@ -87,6 +87,9 @@ def _markdown_table(header, rows) -> list[str]:
 
 
 def _relative(path: str, out: Path) -> str:
+    """`path` relative to the report folder `out` (as stored: the folder can move), else unchanged."""
+    if not Path(path).is_absolute():
+        return str(path)
     try:
         return str(Path(path).resolve().relative_to(out.resolve()))
     except ValueError:
@@ -207,7 +210,7 @@ def run_experiments(out_dir, names=None, force: bool = False, workers: int = 2, 
         try:
             entry = load_script(name).run(out / name, model=model, workers=workers, inputs=report["experiments"],
                                           **{**(exp.quick if quick else {}), **(options or {}).get(name, {})})
-            entry["status"] = "ok"
+            entry.update(status="ok", figures=[_relative(f, out) for f in entry.get("figures", [])])
         except Exception as err:  # a failed experiment is reported and the others still run
             traceback.print_exc()
             entry = {"status": "failed", "error": f"{type(err).__name__}: {err}"}
