@@ -29,11 +29,14 @@ def test_signature_is_the_noise_normalised_difference_and_noise_is_added():
 
 
 def test_summary_rates_per_class_and_unobservable_cases_left_out():
-    def row(case, kind, truth, first, selected, unexplained=False, observable=True):
+    def row(case, kind, truth, first, selected, unexplained=False, observable=True, distinguishable=True):
         return {"case": case, "kind": kind, "truth": truth, "withheld": [[n, {}] for n in truth], "ranked_first": first,
                 "selected": selected, "unexplained": unexplained, "observable": observable, "verdict": "v",
-                "reduction": 0.5, "reduction_above_noise": 0.9, "wall_time_s": 1.0, "signature_chi2": 100.0}
+                "reduction": 0.5, "reduction_above_noise": 0.9, "wall_time_s": 1.0, "signature_chi2": 100.0,
+                "distinguishable_from_gains": distinguishable}
     rows = [row("d1", "single", ["reflex_delay"], "reflex_delay", ["reflex_delay"]),
+            row("g1", "single", ["golgi_feedback"], "reflex_delay", [], distinguishable=False),
+            row("g2", "single", ["bushing_stiffness"], "reflex_delay", ["reflex_delay"], distinguishable=False),
             row("d2", "single", ["extra_damping"], "extra_damping", ["extra_damping", "reflex_delay"]),
             row("d3", "single", ["golgi_feedback"], "reflex_delay", ["reflex_delay"], unexplained=True),
             row("s1", "single", ["stiffening_discs"], "reflex_delay", [], observable=False),
@@ -46,6 +49,8 @@ def test_summary_rates_per_class_and_unobservable_cases_left_out():
     s = summarize(rows, 0.1)
     m = s["measures"]
     assert s["unobservable"] == ["s1"]
+    # as well explained by mis-set gains: out of the single rates, on their own (g2 claims another effect)
+    assert s["as_gains"] == ["g1", "g2"] and m["as_gains_nothing_else"]["failed"] == ["g2"]
     assert m["single_ranked_first"]["rate"] == 2 / 3 and m["single_ranked_first"]["failed"] == ["d3"]
     assert m["single_exactly_claimed"]["rate"] == 1 / 3 and m["single_exactly_claimed"]["failed"] == ["d2", "d3"]
     assert m["pair_both_exactly"]["rate"] == 0.5 and m["none_no_claim"]["rate"] == 0.5
@@ -54,7 +59,7 @@ def test_summary_rates_per_class_and_unobservable_cases_left_out():
     assert m["noise_verdict_when_complete"]["n"] == 3 and m["noise_verdict_when_complete"]["rate"] == 1.0
     assert s["gap_reduction_above_noise"]["cases"] == 2  # exactly identified: d1 and p1
     text = summary_markdown(s)
-    assert "unobservable" in text and "| p2 | pair |" in text and "o2" in text
+    assert "unobservable" in text and "| p2 | pair |" in text and "o2" in text and "100 (as gains)" in text
 
 
 def test_cases_start_with_their_classes_mixed_and_a_folder_refuses_other_code(tmp_path):

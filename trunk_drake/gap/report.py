@@ -96,12 +96,9 @@ def _step(step: dict) -> str:
     model = " + ".join(step["model"]) or "gains only"
     if step["action"] == "add":
         values = "; ".join(f"{n}: " + ", ".join(f"{k} = {v:.4g}" for k, v in vals.items()) for n, vals in step["values"].items())
-        rival = step.get("beats_gain_rival_by")
-        against = "" if rival is None else f", better than refitting the gains along as many more directions by {rival:.1f}"
-        nested = step.get("on_widened_gains")
-        if nested:
-            against += f"; dBIC {nested['delta_bic']:.1f} on top of the gains widened by {nested['directions']} direction(s)"
-        return f"add **{step['effect']}** (dBIC {step['delta_bic']:.1f}{against}); joint refit of {model}: {values}"
+        against = _against_gains(step)
+        return (f"add **{step['effect']}** (dBIC {step['delta_bic']:.1f}{'; ' + against if against else ''}); "
+                f"joint refit of {model}: {values}")
     if step["action"] == "gains":
         return (f"gains refitted along {step['directions']} directions (dBIC {step['delta_bic']:.1f}): mis-set gains beyond "
                 f"the identifiable ones; model: {model}")

@@ -295,7 +295,7 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
             best = max(fits, key=lambda n: s.dbic(current, fits[n], s.candidates[n]), default=None)
             steps.append({"action": "stop", "model": list(current.effects), "best_candidate": best,
                           "delta_bic": s.dbic(current, fits[best], s.candidates[best]) if best else None,
-                          "matched_by_gains": [t for t in tried if t["beats_gain_rival_by"] is not None or "on_widened_gains" in t],
+                          "matched_by_gains": tried,  # each passed its dBIC and failed against the gains
                           "heldout_chi2": current.heldout_chi2})
             break
         dbic, name = chosen["delta_bic"], chosen["effect"]
