@@ -138,10 +138,8 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
     builder = DiagramBuilder()
     try:
         return _assemble(builder, base, opts, perturbation, pelvis_mode, log_period)
-    except BaseException:  # bad input found mid-build: free what was added, as `release` does for a diagram
-        for system in builder.GetSystems():
-            system.__dict__.clear()
-        builder.__dict__.clear()
+    except BaseException:  # bad input found mid-build: free what was added (nested diagrams too)
+        release(builder)
         raise
 
 
@@ -240,8 +238,9 @@ def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str,
     return TrunkDiagram(diagram, base, opts, plant, paths, muscles, reflex, bushings, pert, loggers, fe, feedforward)
 
 
-def release(diagram: Diagram) -> None:
-    """Let Python free a finished diagram: nothing of it (systems, ports, contexts) may be used afterwards.
+def release(diagram: Diagram | DiagramBuilder) -> None:
+    """Let Python free a finished diagram, or the builder of one whose build failed: nothing of it (systems,
+    ports, contexts) may be used afterwards.
 
     pydrake (measured on 1.51.1) never frees a diagram holding a Python LeafSystem: the reference cycles between
     builder, diagram, systems, ports and cache entries pass through C++ where the garbage collector cannot see
