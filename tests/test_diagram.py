@@ -172,3 +172,15 @@ def test_bad_options_are_rejected(sagittal):
         simulate(sagittal, duration=0.1, perturbation=None, kp={"latissimus": 0.1})
     with pytest.raises(ValueError, match="210 entries"):
         simulate(sagittal, duration=0.1, perturbation=None, feedforward=np.zeros(3))
+
+
+def test_a_simulation_records_only_the_muscle_histories_asked_for():
+    """The fits log only what they read (every log is evaluated at every step); the motion is unchanged."""
+    model = td.load_model(dofs="all", spec=pendulum_spec())
+    full = simulate(model, duration=0.2, perturbation=None, feedforward=np.array([0.3]))
+    lean = simulate(model, duration=0.2, perturbation=None, feedforward=np.array([0.3]), log=("normalized_fiber_length",))
+    np.testing.assert_array_equal(lean.q, full.q)
+    np.testing.assert_array_equal(lean.normalized_fiber_length, full.normalized_fiber_length)
+    assert lean.activation is None and lean.muscle_force is None and lean.fiber_length is None
+    with pytest.raises(ValueError, match="unknown muscle logs \\['force'\\]"):
+        simulate(model, duration=0.2, perturbation=None, log=("force",))

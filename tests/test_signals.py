@@ -457,3 +457,17 @@ def test_averaging_known_answers():
     np.testing.assert_allclose(res_raw.mean, P2 + 1.0, atol=1e-12)
     with pytest.raises(ValueError, match="subject 1, trial 0"):
         average_hierarchical([[np.tile(p, 3)], [np.tile(p, 3)[:-5]]], 50)
+
+
+def test_sampled_signal_float_path_is_the_spline():
+    """A simulation evaluates a measured perturbation at a float time every step through compiled code (the
+    spline's piecewise-polynomial form): the same x, v, a as the spline, also at and beyond the ends."""
+    from trunk_drake.signals.sampled import SampledSignal
+
+    t = np.arange(0.0, 12.0 + 1e-9, 0.01)
+    signal = SampledSignal(t, 0.01 * np.sin(2 * np.pi * t) + 0.004 * np.sin(2 * np.pi * 0.37 * t + 1.0))
+    times = np.concatenate([np.random.default_rng(3).uniform(-1.0, 13.0, 500), [0.0, 0.01, 6.0, 11.99, 12.0]])
+    arrays = np.column_stack(signal.evaluate(times))
+    floats = np.array([signal.evaluate(float(s)) for s in times])
+    np.testing.assert_allclose(floats, arrays, rtol=0, atol=1e-12)
+    assert signal.evaluate(13.0) == (arrays[-1, 0], 0.0, 0.0)  # beyond the end: holds the end value, at rest

@@ -32,6 +32,7 @@ SLIDING_PELVIS = ("sagittal", "rhythm")  # configurations with the pelvis_tx sli
 EXTENSOR_GROUPS = ("sacrospinalis", "transversospinalis", "quadratus_lumborum")
 FLEXOR_GROUPS = ("rectus_abdominis", "external_oblique", "internal_oblique", "psoas_major")
 THESIS_PELVIS_MASS = 10_000.0  # kg, seed section 3.4.2
+MUSCLE_LOGS = ("activation", "excitation", "tendon_force", "normalized_fiber_length", "normalized_fiber_velocity", "fiber_length")
 
 
 @dataclass
@@ -119,10 +120,15 @@ def plant_model_for(model, pelvis: str):
     return model.variant(pelvis_free=(pelvis == "force"))
 
 
-def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation=None, log_period: float = 0.0) -> TrunkDiagram:
+def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation=None, log_period: float = 0.0,
+                        log: tuple[str, ...] = MUSCLE_LOGS) -> TrunkDiagram:
     """Build the diagram for `model` (sagittal or rhythm). `perturbation` is a platform signal with
     `evaluate(t) -> (x, v, a)` (e.g. `trunk_drake.signals.make_multisine(...)`), or None.
-    Loggers record every integrator step (``log_period=0``) or at a fixed period."""
+    Loggers record the plant state and the muscle histories `log` (of MUSCLE_LOGS) at every integrator
+    step (``log_period=0``) or at a fixed period; fits log only what they use (each log is evaluated every step)."""
+    unknown = set(log) - set(MUSCLE_LOGS)
+    if unknown:
+        raise ValueError(f"unknown muscle logs {sorted(unknown)}; choose from {MUSCLE_LOGS}")
     opts = options or TrunkOptions()
     if opts.pelvis not in PELVIS_MODES:
         raise ValueError(f"pelvis={opts.pelvis!r}; expected one of {PELVIS_MODES}")
@@ -137,13 +143,14 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
         base = plant_model_for(model, "prescribed")
     builder = DiagramBuilder()
     try:
-        return _assemble(builder, base, opts, perturbation, pelvis_mode, log_period)
+        return _assemble(builder, base, opts, perturbation, pelvis_mode, log_period, log)
     except BaseException:  # bad input found mid-build: free what was added (nested diagrams too)
         release(builder)
         raise
 
 
-def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str, log_period: float) -> TrunkDiagram:
+def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str, log_period: float,
+              log: tuple[str, ...]) -> TrunkDiagram:
     """The systems of `build_trunk_diagram`, added to `builder` and connected; the built diagram."""
     plant = base.plant
     nq, nv, n = plant.num_positions(), plant.num_velocities(), base.n_muscles
@@ -224,15 +231,14 @@ def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str,
 
     loggers = {}
 
-    def log(name, port):
+    def log_port(name, port):
         sink = builder.AddNamedSystem(f"log_{name}", VectorLogSink(port.size(), log_period))
         builder.Connect(port, sink.get_input_port())
         loggers[name] = sink
 
-    log("state", plant.get_state_output_port())
-    for name in ("activation", "tendon_force", "normalized_fiber_length", "normalized_fiber_velocity", "fiber_length"):
-        log(name, muscles.GetOutputPort(name))
-    log("excitation", mixer.GetOutputPort("excitation"))
+    log_port("state", plant.get_state_output_port())
+    for name in log:
+        log_port(name, mixer.GetOutputPort(name) if name == "excitation" else muscles.GetOutputPort(name))
     diagram = builder.Build()
     diagram.set_name("trunk")
     return TrunkDiagram(diagram, base, opts, plant, paths, muscles, reflex, bushings, pert, loggers, fe, feedforward)

@@ -13,7 +13,7 @@ import numpy as np
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import EventStatus
 
-from trunk_drake.diagram import SLIDING_PELVIS, TrunkDiagram, TrunkOptions, build_trunk_diagram, release
+from trunk_drake.diagram import MUSCLE_LOGS, SLIDING_PELVIS, TrunkDiagram, TrunkOptions, build_trunk_diagram, release
 from trunk_drake.metadata import run_metadata
 
 STIFF_INTEGRATOR = "radau3"  # L-stable: independent vertebrae's damping modes reach ~4000 1/s; compliant tendons
@@ -50,12 +50,12 @@ class SimulationResult:
     v: np.ndarray
     lumbar_rotation: np.ndarray  # rad, sum of the five FE angles = S1-L1 link to the vertical, flexion +
     muscles: list[str]
-    activation: np.ndarray  # (n, n_muscles)
-    excitation: np.ndarray
-    muscle_force: np.ndarray  # tendon force, N
-    normalized_fiber_length: np.ndarray
-    normalized_fiber_velocity: np.ndarray
-    fiber_length: np.ndarray  # m
+    activation: np.ndarray | None  # (n, n_muscles); this and the muscle histories below: None unless logged (`log`)
+    excitation: np.ndarray | None
+    muscle_force: np.ndarray | None  # tendon force, N
+    normalized_fiber_length: np.ndarray | None
+    normalized_fiber_velocity: np.ndarray | None
+    fiber_length: np.ndarray | None  # m
     platform: np.ndarray  # (n, 3) platform displacement, velocity, acceleration (zeros without perturbation)
     stats: dict  # integrator statistics
     wall_time_s: float
@@ -237,7 +237,7 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
              lowpass_hz: float | None = None,
              options: TrunkOptions | None = None, integrator: str | None = None, accuracy: float | None = None,
              log_rate: float = DEFAULT_LOG_RATE, max_step: float | None = None, progress: bool = False,
-             steps: np.ndarray | None = None, **option_overrides) -> SimulationResult:
+             steps: np.ndarray | None = None, log: tuple[str, ...] = MUSCLE_LOGS, **option_overrides) -> SimulationResult:
     """Simulate the trunk model (pelvis perturbation, muscles, reflexes, bushings).
 
     `perturbation`: "multisine" (default: 20 s period, 0.2 Hz to `bandwidth` Hz, 2 s fades,
@@ -250,7 +250,8 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
     1 / (10 * bandwidth) and the shortest reflex delay. `steps` (a previous run's `step_times`) replays
     that run's step sequence with the same integrator, error control off: finite differences
     between runs on one sequence are smooth, where each run's own error-controlled sequence would
-    add its switching to the difference. Other keyword arguments override fields of
+    add its switching to the difference. `log`: the muscle histories to record (of `diagram.MUSCLE_LOGS`; the
+    result's others are None), fewer for the fits' many runs. Other keyword arguments override fields of
     `TrunkOptions` (e.g. ``kp=0.2, tendon="compliant"``).
     """
     opts = dataclasses.replace(options or TrunkOptions(), **option_overrides)
@@ -273,7 +274,7 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
     elif max_step is None:
         delays = [max(d, MIN_DELAY_STEP) for d in (opts.reflex_delay, opts.vestibular_delay) if d > 0]
         max_step = min(NONSTIFF_MAX_STEP if nonstiff else MAX_STEP, 0.1 / bandwidth, *delays)
-    td = build_trunk_diagram(model, opts, signal)
+    td = build_trunk_diagram(model, opts, signal, log=tuple(log))
     simulator = Simulator(td.diagram)
     ResetIntegratorFromFlags(simulator, integrator, max_step)
     integ = simulator.get_mutable_integrator()
@@ -388,9 +389,9 @@ def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, se
     opts["constants"] = dataclasses.asdict(td.options.constants)
     return SimulationResult(
         time=t, coordinates=coords, q=q, v=v, lumbar_rotation=x[:, td.fe_indices].sum(axis=1), muscles=list(td.model.muscles),
-        activation=logs["activation"], excitation=logs["excitation"], muscle_force=logs["tendon_force"],
-        normalized_fiber_length=logs["normalized_fiber_length"], normalized_fiber_velocity=logs["normalized_fiber_velocity"],
-        fiber_length=logs["fiber_length"],
+        activation=logs.get("activation"), excitation=logs.get("excitation"), muscle_force=logs.get("tendon_force"),
+        normalized_fiber_length=logs.get("normalized_fiber_length"),
+        normalized_fiber_velocity=logs.get("normalized_fiber_velocity"), fiber_length=logs.get("fiber_length"),
         platform=platform, stats=stats, wall_time_s=wall, options=opts, levels=levels, step_times=step_times,
         metadata=run_metadata(td.model, seed=seed, bandwidth=bandwidth, perturbation=getattr(signal, "to_dict", lambda: None)()),
     )

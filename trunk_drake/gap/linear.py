@@ -53,6 +53,9 @@ class ConstantAcceleration:
         return 0.0, 0.0, self.acceleration
 
 
+OPERATING_POINT_LOGS = ("activation", "excitation", "normalized_fiber_length", "normalized_fiber_velocity")  # what `of` reads
+
+
 @dataclass
 class OperatingPoint:
     """Where the diagram is linearised: the mean level angles (rad, `model.levels` order: the

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from trunk_drake.diagram import TrunkOptions
-from trunk_drake.gap.linear import OperatingPoint
+from trunk_drake.gap.linear import OPERATING_POINT_LOGS, OperatingPoint
 from trunk_drake.gap.measures import segment_chi2
 from trunk_drake.gap.space import Fit, SearchSpace
 from trunk_drake.gap.trials import half
@@ -21,7 +21,7 @@ def simulate_outputs(model, options: TrunkOptions, trial, outputs, steps=None) -
     """The outputs of one trial's simulation in its steady window (means removed), the operating point
     there and the run's step times; on the step sequence `steps` of an earlier run if given."""
     result = simulate(model, duration=trial.duration, perturbation=trial.signal, options=options, log_rate=trial.fs,
-                      **differentiable_settings(model, options, steps))  # the refits difference these simulations
+                      log=OPERATING_POINT_LOGS, **differentiable_settings(model, options, steps))  # the refits difference these
     columns = [result.lumbar_rotation if o == "lumbar_rotation" else result.coordinate(o) for o in outputs]
     y = np.column_stack(columns)[trial.steady]
     return y - y.mean(axis=0), OperatingPoint.of(result, trial.steady), result.step_times

@@ -132,8 +132,11 @@ class CoupledPlant(LeafSystem):
     def DoCalcTimeDerivatives(self, context, derivatives):
         x = self._state_vector(context).CopyToVector()
         if self._free_motion is None or not np.array_equal(x, self._free_motion[0]):
-            m_inv = np.linalg.inv(self.CalcMassMatrix(context))
-            self._free_motion = (x, m_inv, m_inv @ (self.CalcGravityGeneralizedForces(context) - self.CalcBiasTerm(context)))
+            G, full, scratch = self.coupling, self.full, self.full_context(context)  # synced once for all three terms
+            mass = G.T @ full.CalcMassMatrix(scratch) @ G
+            m_inv = 1.0 / mass if self._n == 1 else np.linalg.inv(mass)  # one coordinate (the rhythm): no LAPACK call
+            free = m_inv @ (G.T @ (full.CalcGravityGeneralizedForces(scratch) - full.CalcBiasTerm(scratch)))
+            self._free_motion = (x, m_inv, free)
         _, m_inv, free = self._free_motion
         vdot = free + m_inv @ self._applied.Eval(context) if self._applied.HasValue(context) else free
         derivatives.get_mutable_vector().SetFromVector(np.concatenate([x[self._n:], vdot]))

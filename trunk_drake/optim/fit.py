@@ -67,7 +67,7 @@ class Objective:
         if self.accuracy is not None and "steps" not in settings:
             settings["accuracy"] = self.accuracy
         return simulate(self.model, duration=float(target.time[-1]), perturbation=target.signal, options=self.options,
-                        log_rate=target.fs, **settings, **self.layout.gains(x))
+                        log_rate=target.fs, log=("normalized_fiber_length",), **settings, **self.layout.gains(x))
 
     def outputs(self, result, target: PreparedTrial) -> dict[str, np.ndarray]:
         out = {}

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
-from scipy.interpolate import make_interp_spline
+from scipy.interpolate import PPoly, make_interp_spline
 
 from .filters import lowpass_filtfilt
 
@@ -35,13 +36,17 @@ class SampledSignal:
         self.time, self.displacement = t, x
         self._spline = make_interp_spline(t, x, k=5)
         self._d1, self._d2 = self._spline.derivative(1), self._spline.derivative(2)
+        pieces = PPoly.from_spline(self._spline)  # the same spline per interval, for the per-step scalar path
+        self._breaks, self._coefficients = np.ascontiguousarray(pieces.x), np.ascontiguousarray(pieces.c)
 
     @property
     def duration(self) -> float:
         return float(self.time[-1])
 
     def evaluate(self, t):
-        """(x, v, a) at time(s) t (m, m/s, m/s^2)."""
+        """(x, v, a) at time(s) t (m, m/s, m/s^2); a float t (a simulation's every evaluation) takes a compiled path."""
+        if isinstance(t, float):
+            return _scalar(t, self._breaks, self._coefficients)
         scalar = np.ndim(t) == 0
         tt = np.asarray(t, dtype=float)
         inside = (tt >= self.time[0]) & (tt <= self.time[-1])
@@ -50,3 +55,29 @@ class SampledSignal:
         v = np.where(inside, self._d1(tc), 0.0)
         a = np.where(inside, self._d2(tc), 0.0)
         return (float(x), float(v), float(a)) if scalar else (x, v, a)
+
+
+@numba.njit(cache=True)
+def _scalar(t, breaks, c):
+    """(x, v, a) of the piecewise polynomial (breaks, c) (scipy's PPoly layout, highest power first) at float t;
+    outside the breaks the end value with v = a = 0."""
+    n = breaks.shape[0]
+    inside = breaks[0] <= t <= breaks[n - 1]
+    tc = min(max(t, breaks[0]), breaks[n - 1])
+    i = np.searchsorted(breaks, tc, side="right") - 1
+    i = min(max(i, 0), n - 2)
+    while i > 0 and breaks[i + 1] == breaks[i]:  # a repeated end knot: the last interval of positive length
+        i -= 1
+    dt = tc - breaks[i]
+    x, v, a = 0.0, 0.0, 0.0
+    k = c.shape[0] - 1  # degree
+    for j in range(k + 1):
+        power = k - j
+        x = x * dt + c[j, i]
+        if power >= 1:
+            v = v * dt + power * c[j, i]
+        if power >= 2:
+            a = a * dt + power * (power - 1) * c[j, i]
+    if not inside:
+        v, a = 0.0, 0.0
+    return x, v, a
