@@ -84,31 +84,42 @@ class Objective:
         A group whose fibers never exceed the set point l_d has (l_n - l_d)+ = 0 throughout:
         its kp has no effect near x, so its Jacobian column is exactly zero.
         """
-        parts, engaged, step_times = [], np.zeros(len(self.layout.groups), dtype=bool), []
-        members = self.layout.members(self.model)
-        for target, on in zip(self.targets, steps or [None] * len(self.targets)):
-            try:
-                result = self.simulate(x, target, on)
-            except SimulationError:  # an unstable gain set: a large, finite residual keeps the search going
-                model_out = {n: np.full_like(target.time, np.radians(90.0)) for n in target.outputs}
-                engaged[:] = True
-                step_times.append(None)
-            else:
-                step_times.append(result.step_times)
-                model_out = self.outputs(result, target)
-                stretch = result.normalized_fiber_length.max(axis=0) - self.options.per_muscle(self.model, self.options.l_desired) \
-                    if not isinstance(self.options.l_desired, str) else np.ones(self.model.n_muscles)
-                engaged |= np.array([np.any(stretch[m] > 0) for m in members])
-            for name, measured in target.outputs.items():
-                difference = model_out[name] - measured
-                parts.append((difference - difference.mean()) / target.noise[name])  # offset fitted in closed form
+        return combine([self.of_target(x, k, on) for k, on in enumerate(steps or [None] * len(self.targets))])
+
+    def of_target(self, x, k: int, steps=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """Target k's part of `__call__`: its residuals, the engaged kp parameters and its step times."""
+        target = self.targets[k]
+        engaged = np.zeros(len(self.layout.groups), dtype=bool)
+        try:
+            result = self.simulate(x, target, steps)
+        except SimulationError:  # an unstable gain set: a large, finite residual keeps the search going
+            model_out = {n: np.full_like(target.time, np.radians(90.0)) for n in target.outputs}
+            engaged[:] = True
+            step_times = None
+        else:
+            step_times = result.step_times
+            model_out = self.outputs(result, target)
+            stretch = result.normalized_fiber_length.max(axis=0) - self.options.per_muscle(self.model, self.options.l_desired) \
+                if not isinstance(self.options.l_desired, str) else np.ones(self.model.n_muscles)
+            engaged = np.array([np.any(stretch[m] > 0) for m in self.layout.members(self.model)])
+        parts = []
+        for name, measured in target.outputs.items():
+            difference = model_out[name] - measured
+            parts.append((difference - difference.mean()) / target.noise[name])  # offset fitted in closed form
         return np.concatenate(parts), engaged, step_times
 
 
+def combine(per_target: list[tuple]) -> tuple[np.ndarray, np.ndarray, list]:
+    """`Objective.__call__` from the `of_target` parts of every target, in target order."""
+    return (np.concatenate([r for r, _, _ in per_target]), np.logical_or.reduce([e for _, e, _ in per_target]),
+            [s for _, _, s in per_target])
+
+
 def _evaluate(model, job):
-    """Worker job: the objective (targets, layout, options, accuracy) at x, on the step sequences `steps` if given."""
-    x, problem, steps = job
-    return Objective(model, *problem)(x, steps)
+    """Worker job: one target's part of the objective (targets, layout, options, accuracy) at x, on its step
+    sequence `steps` if given (a point's targets run as separate jobs, so both workers share even one point)."""
+    x, problem, k, steps = job
+    return Objective(model, *problem).of_target(x, k, steps)
 
 
 @dataclass
@@ -203,16 +214,18 @@ def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_
         step sequences are replayed (None: each point on its own)."""
         keys = [replay_key((p.tobytes(),), on) for p in points]
         todo = [(p, k) for p, k in zip(points, keys) if k not in cache]
-        steps = cache[on][2] if on is not None else None
-        results = [None] * len(todo)
-        with tqdm(total=len(todo) * len(targets), desc=f"  start {current['start'] + 1}/{n_starts}: {what}", unit="sim",
+        steps = cache[on][2] if on is not None else [None] * len(targets)
+        jobs = [(p, problem, j, steps[j]) for p, _ in todo for j in range(len(targets))]
+        parts = [None] * len(jobs)
+        with tqdm(total=len(jobs), desc=f"  start {current['start'] + 1}/{n_starts}: {what}", unit="sim",
                   leave=False, disable=not progress or not todo) as bar:
-            for i, result, error in pool.completed(_evaluate, [(p, problem, steps) for p, _ in todo]):
+            for i, part, error in pool.completed(_evaluate, jobs):
                 if error is not None:
                     raise error
-                results[i] = result
-                bar.update(len(targets))
-        for (p, k), result in zip(todo, results):
+                parts[i] = part
+                bar.update(1)
+        for n, (p, k) in enumerate(todo):
+            result = combine(parts[n * len(targets):(n + 1) * len(targets)])
             cache[k] = result
             counter["simulations"] += len(targets)
             history.append({"start": current["start"], "cost": float(0.5 * result[0] @ result[0]), "gains": layout.gains(p)})
