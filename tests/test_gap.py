@@ -263,3 +263,25 @@ def test_a_run_replayed_on_its_own_step_sequences_is_not_simulated_again():
     own = fitter.key([0.1], ())
     assert fitter.key([0.1], (), on=own) == own  # its own replay: the run itself
     assert fitter.key([0.2], (), on=own) == fitter.key([0.2], ())[:3] + (own,)
+
+
+def test_a_refit_step_simulates_the_training_half_only_and_gets_its_outputs_exactly():
+    """The refits' own steps are scored on the training halves: their simulations stop at the end of the half,
+    on the same replayed steps, and give the same outputs there as the whole run (the fitted point runs whole)."""
+    from trunk_drake.gap.refit import simulate_outputs, train_end
+    from trunk_drake.gap.trials import half
+    from trunk_drake.io.trials import OUTPUT_NAMES
+
+    model = td.load_model("rhythm")
+    options = nominal_options()
+    trial = prepare_trials(synthetic_trials(model, options, [("a", 1.0, 1)], np.radians(0.1), seed=3, period=PERIOD),
+                           period=PERIOD)[0]
+    _, _, steps = simulate_outputs(model, options, trial, OUTPUT_NAMES)
+    whole, point, _ = simulate_outputs(model, options, trial, OUTPUT_NAMES, steps)
+    part, no_point, part_steps = simulate_outputs(model, options, trial, OUTPUT_NAMES, steps, until=train_end(trial))
+    train = half(trial, "train")
+    assert part_steps[-2] >= train_end(trial) > part_steps[-3] and part_steps[-1] < steps[-1]
+    np.testing.assert_array_equal(part_steps, steps[: len(part_steps)])
+    assert point is not None and no_point is None  # no operating point from a part of the window
+    centred = [y[train] - y[train].mean(axis=0) for y in (whole, part)]
+    np.testing.assert_allclose(centred[1], centred[0], rtol=0, atol=1e-12)

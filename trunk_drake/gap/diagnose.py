@@ -99,7 +99,7 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
         say(f"{len(data)} trials, noise {np.round(np.degrees(noise), 3).tolist()} deg; simulating the nominal model")
     settings = Settings(threshold=threshold, max_effects=max_effects, refine=refine)
     with WorkerPool(model, workers) as simulator:
-        results = simulator.map(simulation_job, [(options, t, outputs, None) for t in data])
+        results = simulator.map(simulation_job, [(options, t, outputs, None, None) for t in data])
         for t, r in zip(data, results):
             if isinstance(r, Exception):
                 raise ValueError(f"the nominal model diverges on {t.name}: {r}")

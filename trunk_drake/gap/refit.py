@@ -17,21 +17,36 @@ from trunk_drake.simulation import SimulationError, differentiable_settings, rep
 DIVERGED = 1e12  # chi-square of a simulation that diverged
 
 
-def simulate_outputs(model, options: TrunkOptions, trial, outputs, steps=None) -> tuple[np.ndarray, OperatingPoint, np.ndarray]:
+def simulate_outputs(model, options: TrunkOptions, trial, outputs, steps=None,
+                     until: float | None = None) -> tuple[np.ndarray, OperatingPoint | None, np.ndarray]:
     """The outputs of one trial's simulation in its steady window (means removed), the operating point
-    there and the run's step times; on the step sequence `steps` of an earlier run if given."""
-    result = simulate(model, duration=trial.duration, perturbation=trial.signal, options=options, log_rate=trial.fs,
+    there and the run's step times; on the step sequence `steps` of an earlier run if given. With `until`
+    (s) and `steps`, the run stops one replayed step after the first at or after `until` (a refit's training
+    half needs no more): the outputs up to `until` are those of the whole run on the same steps (the
+    resampling's end slopes reach only into the last step), and there is no operating point."""
+    duration = trial.duration
+    if until is not None and steps is not None and until < duration:
+        steps = steps[: int(np.searchsorted(steps, until)) + 2]
+        duration = float(steps[-1])
+    result = simulate(model, duration=duration, perturbation=trial.signal, options=options, log_rate=trial.fs,
                       log=OPERATING_POINT_LOGS, **differentiable_settings(model, options, steps))  # the refits difference these
     columns = [result.lumbar_rotation if o == "lumbar_rotation" else result.coordinate(o) for o in outputs]
     y = np.column_stack(columns)[trial.steady]
-    return y - y.mean(axis=0), OperatingPoint.of(result, trial.steady), result.step_times
+    point = OperatingPoint.of(result, trial.steady) if duration == trial.duration else None
+    return y - y.mean(axis=0), point, result.step_times
+
+
+def train_end(trial) -> float:
+    """Time (s) of the sample after the training half of `trial`'s steady window: a run to it covers the half."""
+    return (trial.steady.start + half(trial, "train").stop) / trial.fs
 
 
 def simulation_job(model, job):
-    """Worker job (options, trial, outputs, steps or None): `simulate_outputs`, or the SimulationError of a diverging run."""
-    options, trial, outputs, steps = job
+    """Worker job (options, trial, outputs, steps or None, until or None): `simulate_outputs`, or the
+    SimulationError of a diverging run."""
+    options, trial, outputs, steps, until = job
     try:
-        return simulate_outputs(model, options, trial, outputs, steps)
+        return simulate_outputs(model, options, trial, outputs, steps, until)
     except SimulationError as err:
         return err
 
@@ -47,22 +62,26 @@ class TimeDomainFitter:
         self.simulations = 0
         self.cache: dict = {}  # (effect names, gain directions, x, key of the run replayed or None) -> (outputs, steps)
 
-    def key(self, x, effects, on=None, space: SearchSpace | None = None) -> tuple:
-        """The cache key of x simulated on the step sequences of the run keyed `on` (`replay_key`)."""
+    def key(self, x, effects, on=None, space: SearchSpace | None = None, train_only: bool = False) -> tuple:
+        """The cache key of x simulated on the step sequences of the run keyed `on` (`replay_key`), over the
+        training halves only if `train_only`."""
         rank = (space or self.space).rank  # the same x means other gains along more directions
-        return replay_key((tuple(e.name for e in effects), rank, np.asarray(x, float).tobytes()), on)
+        key = replay_key((tuple(e.name for e in effects), rank, np.asarray(x, float).tobytes()), on)
+        return (*key, "train") if train_only else key
 
-    def outputs_of(self, points, effects, on=None, space: SearchSpace | None = None) -> list:
+    def outputs_of(self, points, effects, on=None, space: SearchSpace | None = None, train_only: bool = False) -> list:
         """Each point's simulated outputs (None where a simulation diverged), simulated once and cached;
         `effects`: one tuple of effects for every point, or a list of one tuple per point; `on`: the
         key of a run whose step sequences the simulations replay (None: each its own); `space`: the
-        points' space if not the fitter's."""
+        points' space if not the fitter's; `train_only`: each trial simulated to the end of its training
+        half only (the outputs hold no held-out half: for the refits' own steps)."""
         space = space or self.space
         each = effects if isinstance(effects, list) else [effects] * len(points)
-        keys = [self.key(p, fx, on, space) for p, fx in zip(points, each)]
+        keys = [self.key(p, fx, on, space, train_only) for p, fx in zip(points, each)]
         todo = {k: (p, fx) for k, p, fx in zip(keys, points, each) if k not in self.cache}
         steps = self.cache[on][1] if on is not None else [None] * len(self.trials)
-        jobs = [(space.options_for(p, fx), t, self.outputs, s) for p, fx in todo.values() for t, s in zip(self.trials, steps)]
+        jobs = [(space.options_for(p, fx), t, self.outputs, s, train_end(t) if train_only else None)  # stops on replays
+                for p, fx in todo.values() for t, s in zip(self.trials, steps)]
         sims = self.simulator.map(simulation_job, jobs)
         self.simulations += len(jobs)
         n = len(self.trials)
@@ -107,12 +126,13 @@ class TimeDomainFitter:
         self.outputs_of([x_full], effects, space=space)
         on = own if self.cache[own][0] is not None else None  # a diverging start: each point on its own steps
 
-        def fun(z):
-            return self.residual(self.outputs_of([expand(z)], effects, on, space)[0])
+        def fun(z):  # the training halves only: the simulations stop there (the fitted point is run whole below)
+            return self.residual(self.outputs_of([expand(z)], effects, on, space, train_only=True)[0])
 
         def jac(z):
             return finite_difference_jacobian(
-                lambda points: [self.residual(o) for o in self.outputs_of([expand(p) for p in points], effects, on, space)],
+                lambda points: [self.residual(o) for o in self.outputs_of([expand(p) for p in points], effects, on, space,
+                                                                          train_only=True)],
                 z, 0.02 * (hi[free] - lo[free]), upper=hi[free], r0=fun(z))
 
         z = x_full[free]
