@@ -459,15 +459,25 @@ def test_averaging_known_answers():
         average_hierarchical([[np.tile(p, 3)], [np.tile(p, 3)[:-5]]], 50)
 
 
-def test_sampled_signal_float_path_is_the_spline():
-    """A simulation evaluates a measured perturbation at a float time every step through compiled code (the
-    spline's piecewise-polynomial form): the same x, v, a as the spline, also at and beyond the ends."""
+def test_sampled_signal_is_the_quintic_spline_for_floats_and_arrays():
+    """A measured perturbation is evaluated by compiled code on the spline's piecewise-polynomial form (a
+    simulation calls it at a float time every step): the same x, v, a as scipy's quintic interpolating spline,
+    for floats and arrays alike, also at the ends; beyond them it holds the end value, at rest."""
+    from scipy.interpolate import make_interp_spline
+
     from trunk_drake.signals.sampled import SampledSignal
 
     t = np.arange(0.0, 12.0 + 1e-9, 0.01)
-    signal = SampledSignal(t, 0.01 * np.sin(2 * np.pi * t) + 0.004 * np.sin(2 * np.pi * 0.37 * t + 1.0))
-    times = np.concatenate([np.random.default_rng(3).uniform(-1.0, 13.0, 500), [0.0, 0.01, 6.0, 11.99, 12.0]])
+    x = 0.01 * np.sin(2 * np.pi * t) + 0.004 * np.sin(2 * np.pi * 0.37 * t + 1.0)
+    signal = SampledSignal(t, x)
+    spline = make_interp_spline(t, x, k=5)
+    times = np.concatenate([np.random.default_rng(3).uniform(0.0, 12.0, 500), [0.0, 0.01, 6.0, 11.99, 12.0]])
+    expected = np.column_stack([spline(times), spline.derivative(1)(times), spline.derivative(2)(times)])
     arrays = np.column_stack(signal.evaluate(times))
     floats = np.array([signal.evaluate(float(s)) for s in times])
+    np.testing.assert_allclose(arrays, expected, rtol=0, atol=1e-12)
     np.testing.assert_allclose(floats, arrays, rtol=0, atol=1e-12)
-    assert signal.evaluate(13.0) == (arrays[-1, 0], 0.0, 0.0)  # beyond the end: holds the end value, at rest
+    outside = np.array([-1.0, 13.0])
+    np.testing.assert_array_equal(np.column_stack(signal.evaluate(outside)), [[x[0], 0.0, 0.0], [spline(12.0), 0.0, 0.0]])
+    assert signal.evaluate(13.0) == (arrays[-1, 0], 0.0, 0.0)
+    assert signal.evaluate(np.float64(6.0)) == signal.evaluate(6.0) and np.shape(signal.evaluate(np.zeros((2, 3)))[2]) == (2, 3)

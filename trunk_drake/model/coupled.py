@@ -102,7 +102,10 @@ class CoupledPlant(LeafSystem):
 
     def full_context(self, context):
         """The full plant's context at this state (a shared scratch context: use it at once)."""
-        x = self._state_vector(context).CopyToVector()
+        return self._scratch_at(self._state_vector(context).CopyToVector())
+
+    def _scratch_at(self, x):
+        """The scratch context of the full plant at coupled state x."""
         if self._synced is None or not np.array_equal(x, self._synced):
             G = self.coupling
             self.full.SetPositionsAndVelocities(self._scratch, np.concatenate([G @ x[: self._n], G @ x[self._n:]]))
@@ -111,8 +114,10 @@ class CoupledPlant(LeafSystem):
 
     # ---- dynamics in the coupled coordinates ------------------------------------------
     def CalcMassMatrix(self, context) -> np.ndarray:
-        G = self.coupling
-        return G.T @ self.full.CalcMassMatrix(self.full_context(context)) @ G
+        return self._mass(self.full_context(context))
+
+    def _mass(self, scratch) -> np.ndarray:
+        return self.coupling.T @ self.full.CalcMassMatrix(scratch) @ self.coupling
 
     def CalcBiasTerm(self, context) -> np.ndarray:
         return self.coupling.T @ self.full.CalcBiasTerm(self.full_context(context))
@@ -132,10 +137,10 @@ class CoupledPlant(LeafSystem):
     def DoCalcTimeDerivatives(self, context, derivatives):
         x = self._state_vector(context).CopyToVector()
         if self._free_motion is None or not np.array_equal(x, self._free_motion[0]):
-            G, full, scratch = self.coupling, self.full, self.full_context(context)  # synced once for all three terms
-            mass = G.T @ full.CalcMassMatrix(scratch) @ G
+            scratch = self._scratch_at(x)  # the state read once, for all three terms
+            mass = self._mass(scratch)
             m_inv = 1.0 / mass if self._n == 1 else np.linalg.inv(mass)  # one coordinate (the rhythm): no LAPACK call
-            free = m_inv @ (G.T @ (full.CalcGravityGeneralizedForces(scratch) - full.CalcBiasTerm(scratch)))
+            free = m_inv @ (self.coupling.T @ (self.full.CalcGravityGeneralizedForces(scratch) - self.full.CalcBiasTerm(scratch)))
             self._free_motion = (x, m_inv, free)
         _, m_inv, free = self._free_motion
         vdot = free + m_inv @ self._applied.Eval(context) if self._applied.HasValue(context) else free

@@ -34,9 +34,7 @@ class SampledSignal:
         if self.lowpass_hz is not None:
             x = lowpass_filtfilt(x, 1.0 / np.median(np.diff(t)), self.lowpass_hz)
         self.time, self.displacement = t, x
-        self._spline = make_interp_spline(t, x, k=5)
-        self._d1, self._d2 = self._spline.derivative(1), self._spline.derivative(2)
-        pieces = PPoly.from_spline(self._spline)  # the same spline per interval, for the per-step scalar path
+        pieces = PPoly.from_spline(make_interp_spline(t, x, k=5))  # the spline as one polynomial per interval
         self._breaks, self._coefficients = np.ascontiguousarray(pieces.x), np.ascontiguousarray(pieces.c)
 
     @property
@@ -44,17 +42,15 @@ class SampledSignal:
         return float(self.time[-1])
 
     def evaluate(self, t):
-        """(x, v, a) at time(s) t (m, m/s, m/s^2); a float t (a simulation's every evaluation) takes a compiled path."""
+        """(x, v, a) at time(s) t (m, m/s, m/s^2): floats for a scalar t (a simulation's every evaluation),
+        arrays of t's shape otherwise; compiled either way."""
         if isinstance(t, float):
             return _scalar(t, self._breaks, self._coefficients)
-        scalar = np.ndim(t) == 0
         tt = np.asarray(t, dtype=float)
-        inside = (tt >= self.time[0]) & (tt <= self.time[-1])
-        tc = np.clip(tt, self.time[0], self.time[-1])
-        x = self._spline(tc)
-        v = np.where(inside, self._d1(tc), 0.0)
-        a = np.where(inside, self._d2(tc), 0.0)
-        return (float(x), float(v), float(a)) if scalar else (x, v, a)
+        if tt.ndim == 0:
+            return _scalar(float(tt), self._breaks, self._coefficients)
+        values = _many(tt.ravel(), self._breaks, self._coefficients)
+        return tuple(v.reshape(tt.shape) for v in values)
 
 
 @numba.njit(cache=True)
@@ -80,4 +76,13 @@ def _scalar(t, breaks, c):
             a = a * dt + power * (power - 1) * c[j, i]
     if not inside:
         v, a = 0.0, 0.0
+    return x, v, a
+
+
+@numba.njit(cache=True)
+def _many(times, breaks, c):
+    """`_scalar` at every time of a 1-D array: arrays x, v, a."""
+    x, v, a = np.empty(times.size), np.empty(times.size), np.empty(times.size)
+    for i in range(times.size):
+        x[i], v[i], a[i] = _scalar(times[i], breaks, c)
     return x, v, a
