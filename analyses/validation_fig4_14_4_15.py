@@ -40,7 +40,7 @@ def _held_out(gains, files):
     layout = GainLayout.for_groups(tuple(gains["kp"]))
     model = experiment.model()
     objective = Objective(model, targets, layout, TrunkOptions(**experiment.options))
-    vafs, frfs, series = goodness_of_fit(objective, layout.vector(gains), targets)
+    vafs, frfs, series = goodness_of_fit(targets, objective(layout.vector(gains))[0])
     return {name: {**series[name], "vaf": vafs[name]["lumbar_rotation"], "frf": frfs.get(name)} for name in series}, experiment, model
 
 

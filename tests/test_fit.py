@@ -9,7 +9,8 @@ from trunk_drake.data import models_dir
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.io.experiment import load_experiment
 from trunk_drake.io.trials import OUTPUT_NAMES
-from trunk_drake.optim.fit import Objective, fit_reflex_gains, settling_target, targets_from_trials, write_fit
+from trunk_drake.optim.fit import (Objective, fit_reflex_gains, goodness_of_fit, settling_target, targets_from_trials,
+                                    write_fit)
 from trunk_drake.optim.gains import GainLayout
 from trunk_drake.presets import load_preset
 from trunk_drake.simulation import load_reflex_gains
@@ -35,6 +36,27 @@ def test_cost_at_truth_is_the_noise_floor(setting):
     expected = 0.5 * r.size  # chi-square: one per sample and output at the truth
     assert abs(0.5 * r @ r - expected) < 0.1 * expected
     assert engaged.all(), "with the set point at the neutral length every length reflex is at its threshold at rest"
+
+
+def test_goodness_of_fit_from_the_residuals_is_that_of_the_simulation(setting):
+    """The fit reports VAF, FRF and series from the fitted point's residuals: they equal those of the simulation
+    at that point with each output's offset removed."""
+    model, options, targets, truth = setting
+    layout = GainLayout.for_groups(model.groups)
+    objective = Objective(model, targets, layout, options)
+    x = layout.vector(truth)
+    vafs, frfs, series = goodness_of_fit(targets, objective(x)[0])
+    target = targets[0]
+    simulated = objective.outputs(objective.simulate(x, target), target)
+    for name, measured in target.outputs.items():
+        aligned = simulated[name] - (simulated[name] - measured).mean()
+        vaf = 1.0 - np.var(measured - aligned) / np.var(measured - measured.mean())
+        assert vafs[target.name][name] == pytest.approx(vaf, abs=1e-12)
+    np.testing.assert_allclose(series[target.name]["model"], simulated["lumbar_rotation"] - (
+        simulated["lumbar_rotation"] - target.outputs["lumbar_rotation"]).mean(), rtol=0, atol=1e-15)
+    assert (target.name in frfs) == (target.whole_periods >= 1)
+    with pytest.raises(ValueError, match="residuals for"):
+        goodness_of_fit(targets, objective(x)[0][:-1])
 
 
 def test_only_groups_that_move_the_rhythm_are_identifiable(setting):
@@ -76,7 +98,7 @@ def test_fit_recovers_truth_from_three_starts(setting, tmp_path):
             assert abs(value - truth[kind][group]) <= 2 * sd, f"{kind}.{group}: {value:.4f} +- {sd:.4f} vs {truth[kind][group]}"
             assert sd < 0.5 * truth[kind][group], f"{kind}.{group} is identifiable: SD {sd:.4f} vs {truth[kind][group]}"
     assert result.vaf[targets[0].name]["lumbar_rotation"] > 0.95
-    assert result.n_simulations == len(targets) * (len(result.history) + 1)  # + the final goodness-of-fit run
+    assert result.n_simulations == len(targets) * len(result.history)  # the goodness of fit reuses the best point's run
     # the groups held fixed stay in the result, and a gains.toml written from it keeps them (not zeroed)
     written = load_reflex_gains(write_fit(result, tmp_path)["gains"])
     for kind in ("kp", "kv"):
