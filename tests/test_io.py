@@ -280,3 +280,11 @@ def test_load_trial_missing_and_ambiguous_columns(tmp_path):
     assert tr.lumbar_rotation[1] == pytest.approx(math.radians(1.0))
     with pytest.raises(ValueError, match="not a column"):
         load_trial(p, columns={"platform_displacement": "nope"})
+
+
+def test_prepared_trials_are_named_by_their_files_not_their_paths():
+    """Results key trials by name: a file's name is the same on every machine, its absolute path is not."""
+    from trunk_drake.io.prepared import trial_names
+
+    assert trial_names(["/a/b/trial_1.csv", "/a/b/trial_2.csv", None]) == ["trial_1.csv", "trial_2.csv", "trial 2"]
+    assert trial_names(["/a/x.csv", "/b/x.csv", "c/y.csv"]) == ["/a/x.csv", "/b/x.csv", "y.csv"]  # only clashes keep paths

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from pathlib import Path
 
 import numpy as np
 
@@ -72,6 +73,7 @@ def prepare_trials(trials, outputs=("lumbar_rotation",), noise: float | dict | N
     per-level angles), optionally only up to `t_max` seconds; `noise` (rad, scalar or per
     output) when known."""
     prepared = []
+    names = trial_names([trial.source for trial in trials])
     for k, trial in enumerate(trials):
         where = trial.source or f"trial {k}"
         x = trial.platform_displacement if trial.platform_displacement is not None else trial.pelvis_displacement
@@ -84,6 +86,13 @@ def prepare_trials(trials, outputs=("lumbar_rotation",), noise: float | dict | N
             series = np.asarray(trial.output(name), float)[keep]
             measured[name] = series - series[0]
         sigma = None if noise is None else {n: float(noise[n] if isinstance(noise, dict) else noise) for n in outputs}
-        prepared.append(PreparedTrial(where, t, float(trial.fs), measured, sigma, SampledSignal(t, x - x[0], lowpass_hz),
+        prepared.append(PreparedTrial(names[k], t, float(trial.fs), measured, sigma, SampledSignal(t, x - x[0], lowpass_hz),
                                       x - x[0], period, steady_start))
     return prepared
+
+
+def trial_names(sources) -> list[str]:
+    """Each trial's name in results: its file's name (not the path, which differs between machines), the
+    path where two files share a name, "trial k" for a trial without a file."""
+    base = [Path(s).name if s else f"trial {k}" for k, s in enumerate(sources)]
+    return [b if base.count(b) == 1 else str(s or b) for b, s in zip(base, sources)]
