@@ -36,7 +36,7 @@ from trunk_drake.gap.trials import half
 # Secant steps of a joint refit (gains and every selected effect): the magnitudes the diagnosis reports. With 2
 # (the other refits' number) the published all-case run fitted slow activation 1.94 for a truth of 2.5, the upper-body
 # mass 1.27 for 1.15, seat damping 402 for 500, and the remainder test then rejected noise on half the cases whose
-# truth was selected; a branch with 6 refitted slow activation from 1.8 towards 2.5 (2026-12-02, not kept).
+# truth was selected (a joint refit is kept only where it fits the training halves better than the effect's own).
 JOINT_ITERATIONS = 6
 
 
