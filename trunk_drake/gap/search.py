@@ -16,8 +16,9 @@ explained by mis-set gains and is not claimed (an effect of one parameter can st
 directions). The accepted model is then refitted jointly (gains and all effects).
 Backward steps refit the model without each selected effect and drop the weakest while it does not
 pass. At the end, the gains of the selected model are refitted along further directions while each
-passes as an effect would (held-out dBIC): the final model then explains mis-set gains beyond the
-identifiable ones too, and its remainder is tested.
+passes as an effect would (held-out dBIC), and the selected effects together with them (they were fitted
+with the narrower gains, and trade off against the wider ones): the final model then explains mis-set gains
+beyond the identifiable ones too, and its remainder is tested.
 """
 
 from __future__ import annotations
@@ -331,5 +332,12 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
         steps.append({"action": "gains", "directions": final_space.rank, "delta_bic": dbic, "model": list(current.effects),
                       "heldout_chi2": final.heldout_chi2})
         s.say(f"gains refitted along {final_space.rank} directions (dBIC {dbic:.1f}): held-out chi2 {final.heldout_chi2:.0f}")
+        if current.effects:  # the effects were fitted with the narrower gains: refitted together with the widened ones
+            joint = fitter.fit(s.effects(current.effects), final.x, np.arange(final.x.size), max_iterations=JOINT_ITERATIONS,
+                               space=final_space)
+            if joint.outputs is not None and joint.train_chi2 < final.train_chi2:
+                final = joint
+                steps[-1].update(values=final.values, heldout_chi2=final.heldout_chi2)
+                s.say(f"effects refitted with the widened gains: {final.values}, held-out chi2 {final.heldout_chi2:.0f}")
     return SearchResult(base, ranking, list(current.effects), final, steps,
                         {"n_heldout": s.n_test, "penalty": s.penalty, "refit_heldout_chi2": base.heldout_chi2}, final_space)
