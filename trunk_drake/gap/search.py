@@ -38,6 +38,8 @@ from trunk_drake.gap.trials import half
 # (the other refits' number) the published all-case run fitted slow activation 1.94 for a truth of 2.5, the upper-body
 # mass 1.27 for 1.15, seat damping 402 for 500, and the remainder test then rejected noise on half the cases whose
 # truth was selected (a joint refit is kept only where it fits the training halves better than the effect's own).
+# Measured on upper_body_mass_scale1.15 (2026-12-03): 6 steps gave 1.2716 where 2 gave 1.2715, the joint refit was not
+# what held it off; refitting the mass with the gains widened at the end (`search_effects`) gave 1.205.
 JOINT_ITERATIONS = 6
 
 
