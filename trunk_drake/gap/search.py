@@ -251,9 +251,9 @@ class _Search:
             row.pop("linear_fit", None)
         return fits
 
-    def joint(self, names, x0) -> Fit:
-        """Gains and every effect of `names` refitted together with nonlinear simulations."""
-        return self.fitter.fit(self.effects(names), x0, np.arange(len(x0)), max_iterations=JOINT_ITERATIONS)
+    def joint(self, names, x0, space: SearchSpace | None = None) -> Fit:
+        """Gains and every effect of `names` refitted together with nonlinear simulations (in `space`, default the fitter's)."""
+        return self.fitter.fit(self.effects(names), x0, np.arange(len(x0)), max_iterations=JOINT_ITERATIONS, space=space)
 
     def without(self, current: Fit, name: str) -> Fit:
         """`current` without effect `name`: the model fitted before with those effects, else a joint refit."""
@@ -335,8 +335,7 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
                       "heldout_chi2": final.heldout_chi2})
         s.say(f"gains refitted along {final_space.rank} directions (dBIC {dbic:.1f}): held-out chi2 {final.heldout_chi2:.0f}")
         if current.effects:  # the effects were fitted with the narrower gains: refitted together with the widened ones
-            joint = fitter.fit(s.effects(current.effects), final.x, np.arange(final.x.size), max_iterations=JOINT_ITERATIONS,
-                               space=final_space)
+            joint = s.joint(current.effects, final.x, final_space)
             if joint.outputs is not None and joint.train_chi2 < final.train_chi2:
                 final = joint
                 steps[-1].update(values=final.values, heldout_chi2=final.heldout_chi2)
