@@ -87,7 +87,9 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
     without it by more than `threshold` after a k ln N penalty; at most `max_effects`.
     """
     wall = _time.perf_counter()
-    say = (lambda msg: print(f"[{_time.perf_counter() - wall:6.1f} s] {msg}", flush=True)) if progress else None
+    count = {"simulations": 0}  # shared with the fitter: every progress line says how many simulations so far
+    say = (lambda msg: print(f"[{_time.perf_counter() - wall:6.1f} s, {count['simulations']:4d} sims] {msg}", flush=True)) \
+        if progress else None
     options = options or TrunkOptions()
     candidates = tuple(effect(c) if isinstance(c, str) else c for c in (candidates or CATALOGUE))
     data = prepare_trials(trials, outputs, period, fade)
@@ -104,19 +106,20 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
             if isinstance(r, Exception):
                 raise ValueError(f"the nominal model diverges on {t.name}: {r}")
         nominal = [r[0] for r in results]
+        count["simulations"] = len(data)
         screen = LinearScreen(model, options, data, nominal, [r[1] for r in results], noise)
         space = SearchSpace.around(model, options)
         directions, singular_values = gain_directions(screen, space)
         rank = identifiable_rank(singular_values)
         space = dataclasses.replace(space, directions=directions[:, :rank])
-        fitter = TimeDomainFitter(simulator, space, data, noise, outputs)
+        fitter = TimeDomainFitter(simulator, space, data, noise, outputs, count)
         if say:
             say(f"linearised; {space.rank} identifiable gain directions; screening {len(candidates)} candidates")
         found = search_effects(space, screen, fitter, candidates, settings, nominal, [r[2] for r in results],
                                directions[:, rank:], say)
     found.scores.update(nominal_heldout_chi2=sum(segment_chi2(t.steady_outputs, n, noise, half(t, "test"))
                                                  for t, n in zip(data, nominal)),
-                        simulations=fitter.simulations + len(data))
+                        simulations=fitter.simulations)
     left = remainder(data, found.best.outputs, noise, outputs, noise_rel_sd)
     return _report(data, noise, nominal, space, found, left, settings, candidates, outputs, wall)
 

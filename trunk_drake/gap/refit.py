@@ -57,10 +57,14 @@ class TimeDomainFitter:
     held). A fit simulates every point on the step sequences of its start's own run
     (`differentiable_settings`), so its finite differences are smooth."""
 
-    def __init__(self, simulator: WorkerPool, space: SearchSpace, trials, noise, outputs):
+    def __init__(self, simulator: WorkerPool, space: SearchSpace, trials, noise, outputs, counter: dict | None = None):
         self.simulator, self.space, self.trials, self.noise, self.outputs = simulator, space, trials, noise, outputs
-        self.simulations = 0
+        self.counter = counter if counter is not None else {"simulations": 0}  # shared with whoever reports progress
         self.cache: dict = {}  # (effect names, gain directions, x, key of the run replayed or None) -> (outputs, steps)
+
+    @property
+    def simulations(self) -> int:
+        return self.counter["simulations"]
 
     def key(self, x, effects, on=None, space: SearchSpace | None = None, train_only: bool = False) -> tuple:
         """The cache key of x simulated on the step sequences of the run keyed `on` (`replay_key`), over the
@@ -83,7 +87,7 @@ class TimeDomainFitter:
         jobs = [(space.options_for(p, fx), t, self.outputs, s, train_end(t) if train_only else None)  # stops on replays
                 for p, fx in todo.values() for t, s in zip(self.trials, steps)]
         sims = self.simulator.map(simulation_job, jobs)
-        self.simulations += len(jobs)
+        self.counter["simulations"] += len(jobs)
         n = len(self.trials)
         for i, k in enumerate(todo):
             chunk = sims[i * n:(i + 1) * n]

@@ -67,7 +67,8 @@ def markdown(d, names: dict) -> str:
         lines.append(f"| {k} | {r['effect']} | {dbic} | {checked} | {r['linear_delta_bic']:.1f} | {text} | {r.get('status', '')} |")
     lines += ["", f"![ranking]({names['ranking_plot']})", "", "Selection, step by step (each effect's own held-out dBIC "
               "against the model without it):", ""]
-    lines += [f"{k}. {_step(step)}" for k, step in enumerate(d.steps, 1)] or ["1. nothing to select"]
+    lines += [f"{k}. {_step(step)}" + (f" ({step['simulations']} simulations so far)" if "simulations" in step else "")
+              for k, step in enumerate(d.steps, 1)] or ["1. nothing to select"]
     lines += ["", "## 3. How far the gap shrinks (held-out data)", ""]
     if s:
         gap = s["gap"]

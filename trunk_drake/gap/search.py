@@ -303,7 +303,7 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
         chosen, tried = s.claim(current, fits)
         if chosen is None:
             best = max(fits, key=lambda n: s.dbic(current, fits[n], s.candidates[n]), default=None)
-            steps.append({"action": "stop", "model": list(current.effects), "best_candidate": best,
+            steps.append({"simulations": fitter.simulations, "action": "stop", "model": list(current.effects), "best_candidate": best,
                           "delta_bic": s.dbic(current, fits[best], s.candidates[best]) if best else None,
                           "matched_by_gains": tried,  # each passed its dBIC and failed against the gains
                           "heldout_chi2": current.heldout_chi2})
@@ -312,7 +312,7 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
         joint = s.joint(current.effects + (name,), fits[name].x)
         current = joint if joint.outputs is not None and joint.train_chi2 <= fits[name].train_chi2 else fits[name]
         s.models[frozenset(current.effects)] = current
-        steps.append({"action": "add", "effect": name, "delta_bic": dbic, "beats_gain_rival_by": chosen["beats_gain_rival_by"], "on_widened_gains": chosen.get("on_widened_gains"),
+        steps.append({"simulations": fitter.simulations, "action": "add", "effect": name, "delta_bic": dbic, "beats_gain_rival_by": chosen["beats_gain_rival_by"], "on_widened_gains": chosen.get("on_widened_gains"),
                       "model": list(current.effects), "heldout_chi2": current.heldout_chi2, "values": current.values})
         s.say(f"added {name} (dBIC {dbic:.1f}); joint refit: held-out chi2 {current.heldout_chi2:.0f}")
         while len(current.effects) > 1:  # every selected effect must still earn its place
@@ -320,9 +320,9 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
             own = {n: s.dbic(w, current, s.candidates[n]) for n, w in without.items()}
             weakest = min(own, key=own.get)
             if own[weakest] > settings.threshold:
-                steps.append({"action": "keep", "model": list(current.effects), "own_delta_bic": own})
+                steps.append({"simulations": fitter.simulations, "action": "keep", "model": list(current.effects), "own_delta_bic": own})
                 break
-            steps.append({"action": "drop", "effect": weakest, "own_delta_bic": own,
+            steps.append({"simulations": fitter.simulations, "action": "drop", "effect": weakest, "own_delta_bic": own,
                           "model": [n for n in current.effects if n != weakest]})
             s.say(f"dropped {weakest} (own dBIC {own[weakest]:.1f})")
             dropped.add(weakest)
@@ -331,14 +331,14 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
     widened = s.widen(current)
     if widened:
         final, final_space, dbic = widened
-        steps.append({"action": "gains", "directions": final_space.rank, "delta_bic": dbic, "model": list(current.effects),
+        steps.append({"simulations": fitter.simulations, "action": "gains", "directions": final_space.rank, "delta_bic": dbic, "model": list(current.effects),
                       "heldout_chi2": final.heldout_chi2})
         s.say(f"gains refitted along {final_space.rank} directions (dBIC {dbic:.1f}): held-out chi2 {final.heldout_chi2:.0f}")
         if current.effects:  # the effects were fitted with the narrower gains: refitted together with the widened ones
             joint = s.joint(current.effects, final.x, final_space)
             if joint.outputs is not None and joint.train_chi2 < final.train_chi2:
                 final = joint
-                steps[-1].update(values=final.values, heldout_chi2=final.heldout_chi2)
+                steps[-1].update(values=final.values, heldout_chi2=final.heldout_chi2, simulations=fitter.simulations)
                 s.say(f"effects refitted with the widened gains: {final.values}, held-out chi2 {final.heldout_chi2:.0f}")
     return SearchResult(base, ranking, list(current.effects), final, steps,
                         {"n_heldout": s.n_test, "penalty": s.penalty, "refit_heldout_chi2": base.heldout_chi2}, final_space)
