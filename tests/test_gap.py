@@ -214,6 +214,35 @@ def test_an_effect_no_better_than_more_gain_directions_is_not_claimed():
     assert wider.rank == 3 and fit.heldout_chi2 == 1350.0 and dbic == pytest.approx(1500.0 - 1350.0 - search.penalty)
 
 
+def test_gains_first_adopts_the_widened_gains_before_any_effect_is_weighed():
+    """`Settings.gains_first`: the search widens the gains while each further direction passes as an effect would,
+    then searches on in that space: its rivals and further widening start from the directions left."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.search import Settings, _Search
+    from trunk_drake.gap.space import Fit, SearchSpace
+    from trunk_drake.optim.gains import GainLayout
+
+    class Fitter:  # the gains along a third direction gain 150 held-out; a fourth 5 (below the threshold)
+        space = None
+
+        def fit(self, effects, x0, free, space=None):
+            return Fit((), np.asarray(x0, float), 0.0, {3: 1350.0, 4: 1345.0}[space.rank], {}, outputs=[])
+
+    layout = GainLayout(("kp.sacrospinalis", "kv.sacrospinalis", "kp.psoas_major", "kv.psoas_major"))
+    space = SearchSpace(TrunkOptions(), layout, np.eye(4)[:, :2])
+    trial = SimpleNamespace(steady_outputs=np.zeros((1000, 1)))
+    fitter = Fitter()
+    search = _Search(space, SimpleNamespace(trials=[trial]), fitter, (), Settings(gains_first=True), np.eye(4)[:, 2:], None)
+    base, wider, dbic = search.widen(Fit((), np.zeros(2), 0.0, 1500.0, {}))
+    assert wider.rank == 3 and base.x.size == 3 and dbic == pytest.approx(150.0 - search.penalty)
+    search.adopt(wider)
+    assert search.space is wider and fitter.space is wider and search.rivals == {}
+    np.testing.assert_array_equal(search.spare, np.eye(4)[:, 3:])  # the directions beyond the adopted ones
+    assert search.rival(base, 1).heldout_chi2 == 1345.0 and search.rival(base, 2) is None
+    assert search.widen(base) is None  # the fourth direction does not pass
+
+
 def test_the_check_also_simulates_a_linear_fit_with_the_current_gains():
     """The linear fit can be far off at the reflexes' kinks: the check simulates each screened row at its linear
     fit, at the effect's linear fit with the current gains and at the catalogue's start with the current gains,

@@ -22,6 +22,9 @@ def add_command(sub) -> None:
                    help=f"candidate effects (default: the whole catalogue: {', '.join(e.name for e in CATALOGUE)})")
     p.add_argument("--threshold", type=float, default=10.0, help="held-out dBIC needed to claim an effect")
     p.add_argument("--refine", type=count, default=3, help="candidates refined with nonlinear simulations")
+    p.add_argument("--gains-first", action="store_true",
+                   help="widen the reflex gains beyond the identifiable directions (as far as each further direction "
+                        "passes the threshold) before weighing any effect")
     p.add_argument("--workers", type=count, default=2)
     p.add_argument("--no-animation", action="store_true",
                    help="skip the two animations of the first trial (nominal and diagnosed model against the data)")
@@ -51,7 +54,8 @@ def run(args) -> int:
     diagnosis = diagnose_gap(model, experiment.trials, TrunkOptions(**options), noise=noise,
                              outputs=available_outputs(experiment.trials),
                              candidates=args.candidates, threshold=args.threshold, refine=args.refine,
-                             period=experiment.period, fade=experiment.fade, workers=args.workers, progress=not args.json)
+                             period=experiment.period, fade=experiment.fade, workers=args.workers, gains_first=args.gains_first,
+                             progress=not args.json)
     animations = {} if args.no_animation else _animations(model, experiment.trials[0], TrunkOptions(**options), diagnosis, args.out)
     files = write_diagnosis(diagnosis, args.out, animations)
     if args.json:

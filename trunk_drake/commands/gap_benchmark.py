@@ -25,6 +25,9 @@ def add_command(sub) -> None:
                    help="local processes: the cases run on them in parallel (one case: its diagnosis does)")
     b.add_argument("--cluster", default=None, metavar="ADDRESS",
                    help="Dask scheduler address, e.g. tcp://host:8786: the cases run in parallel, one per worker")
+    b.add_argument("--gains-first", action="store_true",
+                   help="the search variant that widens the gains before weighing any effect (a different benchmark: "
+                        "a folder resumes only with the variant it began with)")
     b.add_argument("--json", action="store_true", help="print the summary as JSON")
     b.set_defaults(func=run, resumable=True)
 
@@ -38,7 +41,7 @@ def run(args) -> int:
 
     summary = run_benchmark(args.out, quick=args.quick, noise_deg=args.noise_deg or DEFAULT_NOISE_DEG,
                             workers=args.workers, progress=None if args.json else _line, cluster=args.cluster,
-                            only=args.case, candidates=args.candidates)
+                            only=args.case, candidates=args.candidates, gains_first=args.gains_first)
     if args.json:
         print(json.dumps({k: v for k, v in summary.items() if k != "rows"}, indent=2, default=str))
     else:

@@ -161,9 +161,10 @@ def _lag_kinematics(trials, lag_s: float):
     return out
 
 
-def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers: int, candidates=None):
+def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers: int, candidates=None,
+             gains_first: bool = False):
     """Simulate the case's truth, diagnose it blind (among `candidates`, default the whole
-    catalogue); returns (result row, diagnosis)."""
+    catalogue; `gains_first`: see `diagnose_gap`); returns (result row, diagnosis)."""
     designs = [("1hz_a", 1.0, case.seed), ("1hz_b", 1.0, case.seed + 1000), ("3hz", 3.0, case.seed + 2000)]
     start = time.perf_counter()
     truth = truth_options(nominal, case)
@@ -172,7 +173,8 @@ def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers
         clean = _lag_kinematics(clean, case.effects[0][1]["lag_s"])
     observability = _observability(model, case, nominal, designs, clean, noise_rad) if case.effects else {}
     noisy = add_noise(clean, noise_rad, seed=case.seed)
-    diagnosis = diagnose_gap(model, noisy, nominal, noise=noise_rad, candidates=candidates, threshold=THRESHOLD, workers=workers)
+    diagnosis = diagnose_gap(model, noisy, nominal, noise=noise_rad, candidates=candidates, threshold=THRESHOLD, workers=workers,
+                             gains_first=gains_first)
     if case.kind == "single":
         observability.update(_versus_gains(model, case, truth, noisy, diagnosis, noise_rad))
     top = diagnosis.ranking[0]["effect"] if diagnosis.ranking else None
@@ -190,9 +192,9 @@ def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers
 
 def _case_job(model, job):
     """Worker job: one case, or its error row (a failing case is recorded and the benchmark goes on)."""
-    case, nominal, noise_rad, workers, candidates = job
+    case, nominal, noise_rad, workers, candidates, gains_first = job
     try:
-        return run_case(model, case, nominal, noise_rad, workers, candidates)
+        return run_case(model, case, nominal, noise_rad, workers, candidates, gains_first)
     except Exception as err:  # noqa: BLE001
         return {**_error_row(case, f"{type(err).__name__}: {err}"), "traceback": traceback.format_exc(limit=3)}, None
 
@@ -239,18 +241,20 @@ def _versus_gains(model, case: Case, truth: TrunkOptions, noisy, diagnosis, nois
 
 
 def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE_DEG, workers: int = 2, progress=print,
-                  cluster: str | None = None, only=None, candidates=None) -> dict:
+                  cluster: str | None = None, only=None, candidates=None, gains_first: bool = False) -> dict:
     """Run (or resume) every case, or those of `only` (case names or classes: single, pair, outside,
     none); returns the summary of the cases done so far (also written to summary.json/.md). Each
     diagnosis chooses among `candidates` (effect names; default the whole catalogue). The cases run
     in parallel, one per worker: on `workers` local processes, or on the Dask cluster at `cluster`;
     a single case runs its diagnosis on the `workers` instead. They start in an order that mixes the
-    classes, so that an interrupted run already covers each. A folder resumes only with the noise,
-    candidates and code (`source_fingerprint`) it was started with."""
+    classes, so that an interrupted run already covers each. `gains_first`: the search variant of
+    `diagnose_gap`. A folder resumes only with the noise, candidates, search variant and code
+    (`source_fingerprint`) it was started with."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     candidates = sorted(candidates) if candidates else None
-    _check_settings(out / "settings.json", {"noise_deg": noise_deg, "candidates": candidates, "code": source_fingerprint()})
+    _check_settings(out / "settings.json", {"noise_deg": noise_deg, "candidates": candidates, "gains_first": gains_first,
+                                            "code": source_fingerprint()})
     results_path = out / "results.jsonl"
     done = {}
     if results_path.exists():
@@ -262,7 +266,7 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
     noise = float(np.radians(noise_deg))
     pending = mixed([c for c in all_cases if c.name not in done or "error" in done[c.name]])
     in_parallel = bool(cluster) or len(pending) > 1  # the cases on the workers, else the one case's diagnosis
-    jobs = [(case, nominal, noise, 1 if in_parallel else workers, candidates) for case in pending]
+    jobs = [(case, nominal, noise, 1 if in_parallel else workers, candidates, gains_first) for case in pending]
     with WorkerPool(model, workers if in_parallel else 1, cluster) as pool, _resumable():
         for finished, (i, result, error) in enumerate(pool.completed(_case_job, jobs), 1):
             case = pending[i]
@@ -276,7 +280,7 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
                 progress(f"[{finished + len(all_cases) - len(pending)}/{len(all_cases)}] {case.name}: " + (row.get("error") or
                          f"claimed {row['selected'] or 'none'}{', unexplained remainder' if row['unexplained'] else ''} "
                          f"({row['wall_time_s']:.0f} s)"))
-    summary = summarize([done[c.name] for c in all_cases if c.name in done], noise_deg, candidates)
+    summary = summarize([done[c.name] for c in all_cases if c.name in done], noise_deg, candidates, gains_first)
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=json_default))
     (out / "summary.md").write_text(summary_markdown(summary))
     return summary
@@ -303,10 +307,14 @@ def mixed(cases_: list[Case]) -> list[Case]:
     return [c for _, c in sorted(zip(keyed, cases_), key=lambda kc: kc[0])]
 
 
+SETTINGS_BEFORE_RECORDED = {"gains_first": False}  # settings.json of folders started before these were recorded
+
+
 def _check_settings(path: Path, settings: dict) -> None:
     """Write the run's settings, or refuse to resume a folder started with others (its rows would mix)."""
     if path.exists():
         before = json.loads(path.read_text())
+        before = {**SETTINGS_BEFORE_RECORDED, **before}
         changed = {k: (before.get(k), v) for k, v in settings.items() if before.get(k) != v}
         if changed:
             raise ValueError(f"{path.parent} holds a gap benchmark run with other settings ("
@@ -321,7 +329,7 @@ def _rate(rows, test):
             "passed": int(sum(bool(test(r)) for r in rows)), "failed": [r["case"] for r in rows if not test(r)]}
 
 
-def summarize(rows: list[dict], noise_deg: float, candidates=None) -> dict:
+def summarize(rows: list[dict], noise_deg: float, candidates=None, gains_first: bool = False) -> dict:
     """Per-class rates against the targets (only observable withheld changes count in the rates)."""
     ok = [r for r in rows if "error" not in r]
     unobservable = [r["case"] for r in ok if r["kind"] != "none" and not r.get("observable", True)]
@@ -342,7 +350,7 @@ def summarize(rows: list[dict], noise_deg: float, candidates=None) -> dict:
         "as_gains_nothing_else": _rate(as_gains, lambda r: set(r["selected"]) <= set(r["truth"])),
     }
     return {
-        "noise_deg": noise_deg, "candidates": candidates or "catalogue", "cases": len(rows), "failed": [r["case"] for r in rows if "error" in r],
+        "noise_deg": noise_deg, "candidates": candidates or "catalogue", "gains_first": gains_first, "cases": len(rows), "failed": [r["case"] for r in rows if "error" in r],
         "unobservable": unobservable, "as_gains": [r["case"] for r in as_gains], "measures": measures,
         "gap_reduction_above_noise": {"median": float(np.median(reductions)) if reductions else None,
                                       "min": float(np.min(reductions)) if reductions else None,
@@ -368,7 +376,8 @@ def summary_markdown(s: dict) -> str:
     g = s["gap_reduction_above_noise"]
     candidates = s.get("candidates", "catalogue")
     among = "the whole catalogue" if candidates == "catalogue" else ", ".join(candidates)
-    lines = ["# Gap benchmark", "", f"Noise {s['noise_deg']} deg, candidates: {among}; {s['cases']} cases ({len(s['failed'])} failed"
+    search = "; search: gains widened first" if s.get("gains_first") else ""
+    lines = ["# Gap benchmark", "", f"Noise {s['noise_deg']} deg, candidates: {among}{search}; {s['cases']} cases ({len(s['failed'])} failed"
              + (f": {', '.join(s['failed'])}" if s["failed"] else "") + "); unobservable withheld changes (left out of the "
              f"rates): {', '.join(s['unobservable']) or 'none'}; single effects the trials cannot tell from mis-set gains "
              f"(the truth beats the diagnosis' gains-only refit on held-out data by at most the threshold; left out of the "

@@ -77,14 +77,16 @@ class GapDiagnosis:
 
 def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: float | None = None, outputs=OUTPUT_NAMES,
                  candidates=None, threshold: float = 10.0, max_effects: int = 3, refine: int = 3, period: float = 20.0,
-                 fade: float = 2.0, workers: int = 2, progress: bool = False) -> GapDiagnosis:
+                 fade: float = 2.0, workers: int = 2, gains_first: bool = False, progress: bool = False) -> GapDiagnosis:
     """Diagnose the gap between `model` (with `options`, e.g. fitted reflex gains) and `trials`.
 
     `noise` (rad, scalar or per output) is the measurement noise of the angles (estimated per
     output from the data's high frequencies when None). `candidates` defaults to the whole
     catalogue; the best `refine` of each linear screening are refitted with nonlinear
     simulations. An effect is claimed when it lowers the held-out chi-square of the model
-    without it by more than `threshold` after a k ln N penalty; at most `max_effects`.
+    without it by more than `threshold` after a k ln N penalty; at most `max_effects`. `gains_first`: the
+    gains are widened beyond the identifiable directions (as far as each further direction passes) before
+    any effect is weighed (`search.Settings`).
     """
     wall = _time.perf_counter()
     count = {"simulations": 0}  # shared with the fitter: every progress line says how many simulations so far
@@ -99,7 +101,7 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
         noise, noise_rel_sd = np.broadcast_to(np.asarray(noise, float), (len(outputs),)).copy(), 0.0
     if say:
         say(f"{len(data)} trials, noise {np.round(np.degrees(noise), 3).tolist()} deg; simulating the nominal model")
-    settings = Settings(threshold=threshold, max_effects=max_effects, refine=refine)
+    settings = Settings(threshold=threshold, max_effects=max_effects, refine=refine, gains_first=gains_first)
     with WorkerPool(model, workers) as simulator:
         results = simulator.map(simulation_job, [(options, t, outputs, None, None) for t in data])
         for t, r in zip(data, results):
@@ -146,7 +148,7 @@ def _report(data, noise, nominal, space: SearchSpace, found: SearchResult, left:
                         verdict=_verdict(found, left, shrink, on_bounds, settings.threshold), shrink=shrink, final=final,
                         noise_rad=noise.tolist(), wall_time_s=_time.perf_counter() - wall,
                         options={"threshold": settings.threshold, "max_effects": settings.max_effects,
-                                 "refine": settings.refine, "outputs": list(outputs),
+                                 "refine": settings.refine, "gains_first": settings.gains_first, "outputs": list(outputs),
                                  "candidates": [c.name for c in candidates], "scores": found.scores,
                                  "gain_directions": int(space.rank), "held_out": "second half of every trial's steady window"},
                         steps=found.steps, remainder=left, series=series,

@@ -19,6 +19,10 @@ pass. At the end, the gains of the selected model are refitted along further dir
 passes as an effect would (held-out dBIC), and the selected effects together with them (they were fitted
 with the narrower gains, and trade off against the wider ones): the final model then explains mis-set gains
 beyond the identifiable ones too, and its remainder is tested.
+
+With `Settings.gains_first` the gains are widened that way before any effect is weighed: every candidate is
+then screened, ranked and claimed on top of the widened gains (a large gain mismatch no longer makes every
+effect lose to its gain rival).
 """
 
 from __future__ import annotations
@@ -53,6 +57,7 @@ class Settings:
     max_effects: int = 3
     check: int = 6
     refine: int = 3
+    gains_first: bool = False  # widen the gains as far as they pass before any effect is weighed (`_Search.adopt`)
 
 
 @dataclass
@@ -127,6 +132,13 @@ class _Search:
         if k == 0:
             return None
         return before, self.wider(k), float(current.heldout_chi2 - before.heldout_chi2 - k * self.penalty)
+
+    def adopt(self, space: SearchSpace) -> None:
+        """Search on in `space` (the search's with more gain directions, from `widen`): the effects are then weighed
+        against gains widened as far as they pass from the start, not only in the rival and nested tests."""
+        more = space.rank - self.space.rank
+        self.space, self.spare, self.rivals = space, self.spare[:, more:], {}
+        self.fitter.space = space
 
     def nested(self, current: Fit, fit: Fit, name: str) -> tuple[float, int] | None:
         """Does effect `name` (fitted in `fit`, added to `current`) add to `current` with its gains widened as far
@@ -283,12 +295,19 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
     fitter.seed(np.zeros(rank), (), nominal, nominal_steps)
     base = s.regain(fitter.fit((), np.zeros(rank), np.arange(rank), max_iterations=3))
     s.say(f"refitted the nominal gains: held-out chi2 {base.heldout_chi2:.0f}")
+    steps = []
+    if settings.gains_first and (widened := s.widen(base)) is not None:
+        base, wider, dbic = widened
+        s.adopt(wider)
+        steps.append({"simulations": fitter.simulations, "action": "gains", "directions": wider.rank, "delta_bic": dbic,
+                      "model": [], "heldout_chi2": base.heldout_chi2})
+        s.say(f"gains first: refitted along {wider.rank} directions (dBIC {dbic:.1f}): held-out chi2 {base.heldout_chi2:.0f}")
     ranking = s.screen_additions(base, list(s.candidates))
     singles = s.refine(base, ranking)
     ranking.sort(key=lambda r: (-r.get("delta_bic", -np.inf), -r.get("checked_delta_bic", -np.inf), -r["linear_delta_bic"]))
     s.models[frozenset()] = base
 
-    current, steps, dropped = base, [], set()
+    current, dropped = base, set()
     while len(current.effects) < settings.max_effects:
         if not current.effects:
             rows, fits = ranking, singles
@@ -327,7 +346,7 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
             s.say(f"dropped {weakest} (own dBIC {own[weakest]:.1f})")
             dropped.add(weakest)
             current = without[weakest]
-    final, final_space = current, space
+    final, final_space = current, s.space
     widened = s.widen(current)
     if widened:
         final, final_space, dbic = widened
