@@ -64,7 +64,7 @@ def run(out_dir, model=None, workers=2, inputs=None, held_out=HELD_OUT):
     if not entry or entry.get("status") != "ok":
         raise RuntimeError(f"the validation needs the car-passenger fit: run {FIT} first (the runner does so)")
     car = entry["numbers"]["car"]
-    trained = thesis.load_fit_arrays(entry["numbers"]["files"]["car_arrays"])
+    trained = thesis.load_fit_arrays(Path(out_dir).parent / entry["numbers"]["files"]["car_arrays"])  # relative to the report
     for name, s in trained.items():
         s["vaf"] = car["vaf"][name]["lumbar_rotation"]
     thesis.log(f"  predicting the held-out trial(s) {', '.join(held_out)} with the fitted gains ...")

@@ -35,6 +35,7 @@ def test_reproduce_quick_runs_every_experiment(tmp_path, capsys):
     report = json.loads((tmp_path / "report.json").read_text())
     assert {e.name: report["experiments"][e.name]["status"] for e in EXPERIMENTS} == {e.name: "ok" for e in EXPERIMENTS}
     assert "--quick: shortened, not a result" in (tmp_path / "report.md").read_text()
+    assert str(tmp_path) not in (tmp_path / "report.json").read_text()  # paths relative to the report: it can move
 
 
 def test_fit_on_one_short_trial(tmp_path, capsys):

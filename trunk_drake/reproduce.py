@@ -52,7 +52,8 @@ EXPERIMENTS = (
     Experiment("intrinsic_vs_reflex_fig4_13", "Intrinsic properties alone versus with reflexes (Fig. 4.13)", quick={"duration": 2.0}),
     Experiment("validation_fig4_14_4_15", "Validation: time-domain fit and VAF, FRF (Figs. 4.14-4.15)",
                requires=("fitted_gains_tables4_2_4_3",)),
-    Experiment("computation_time_table4_1", "Computation time (Table 4.1)", quick={"step_duration": 0.2, "trial_duration": 1.0}),
+    Experiment("computation_time_table4_1", "Computation time (Table 4.1)", quick={"step_duration": 0.2, "trial_duration": 1.0},
+               requires=("fitted_gains_tables4_2_4_3",)),  # quotes the fits' times
 )
 
 
@@ -94,6 +95,21 @@ def _relative(path: str, out: Path) -> str:
         return str(Path(path).resolve().relative_to(out.resolve()))
     except ValueError:
         return str(path)
+
+
+def _relative_paths(value, out: Path):
+    """`value` (an experiment's entry) with every path string into the report folder `out` made relative to it
+    (figures, the files a fit wrote): the folder can move, and a committed report names no machine's folders."""
+    if isinstance(value, dict):
+        return {k: _relative_paths(v, out) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(_relative_paths(v, out) for v in value)
+    if isinstance(value, (str, Path)) and str(value):
+        try:  # a file or folder the run wrote; text is left as it is
+            return str(Path(value).resolve(strict=True).relative_to(out.resolve()))
+        except (OSError, ValueError):
+            return value
+    return value
 
 
 def write_report(out_dir, report: dict) -> Path:
@@ -210,7 +226,7 @@ def run_experiments(out_dir, names=None, force: bool = False, workers: int = 2, 
         try:
             entry = load_script(name).run(out / name, model=model, workers=workers, inputs=report["experiments"],
                                           **{**(exp.quick if quick else {}), **(options or {}).get(name, {})})
-            entry.update(status="ok", figures=[_relative(f, out) for f in entry.get("figures", [])])
+            entry = _relative_paths({**entry, "status": "ok"}, out)
         except Exception as err:  # a failed experiment is reported and the others still run
             traceback.print_exc()
             entry = {"status": "failed", "error": f"{type(err).__name__}: {err}"}
