@@ -212,6 +212,11 @@ def test_an_effect_no_better_than_more_gain_directions_is_not_claimed():
         assert [t["effect"] for t in tried] == (["reflex_delay"] if claimed else ["reflex_delay", "upper_body_mass"])
     fit, wider, dbic = search.widen(current)  # no claim: the gains along the third direction pass as an effect would
     assert wider.rank == 3 and fit.heldout_chi2 == 1350.0 and dbic == pytest.approx(1500.0 - 1350.0 - search.penalty)
+    for gains_first, claimed in ((False, None), (True, "reflex_delay")):  # loses to its rival, adds 45 on top of it
+        search = _Search(space, SimpleNamespace(trials=[trial]), Fitter(1295.0, 1250.0), (delay, mass),
+                         Settings(gains_first=gains_first), np.eye(3)[:, 2:], None)
+        chosen, tried = search.claim(current, fits)
+        assert (chosen and chosen["effect"]) == claimed and tried[0]["beats_gain_rival_by"] == pytest.approx(-5.0)
 
 
 def test_gains_first_adopts_the_widened_gains_before_any_effect_is_weighed():
