@@ -290,13 +290,31 @@ def test_the_check_also_simulates_a_linear_fit_with_the_current_gains():
 def test_a_run_replayed_on_its_own_step_sequences_is_not_simulated_again():
     from trunk_drake.gap.refit import TimeDomainFitter
     from trunk_drake.gap.space import SearchSpace
-    from trunk_drake.optim.gains import GainLayout
 
-    space = SearchSpace(TrunkOptions(), GainLayout(("kp.sacrospinalis",)), np.eye(1))
+    space = SearchSpace.around(td.load_model("rhythm"), nominal_options())
+    space = SearchSpace(space.options, space.layout, np.eye(len(space.layout.names))[:, :1])
     fitter = TimeDomainFitter(None, space, [], None, ())
     own = fitter.key([0.1], ())
     assert fitter.key([0.1], (), on=own) == own  # its own replay: the run itself
     assert fitter.key([0.2], (), on=own) == fitter.key([0.2], ())[:3] + (own,)
+
+
+def test_a_point_of_a_wider_gain_space_at_zero_along_the_new_directions_is_the_same_run():
+    """The refits key their simulations by the model simulated (gains and effects), not by the space's coordinates:
+    the gain rivals and nested fits start in a wider space at a model already simulated."""
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.refit import TimeDomainFitter
+    from trunk_drake.gap.space import SearchSpace
+
+    narrow = SearchSpace.around(td.load_model("rhythm"), nominal_options())
+    n = len(narrow.layout.names)
+    narrow = SearchSpace(narrow.options, narrow.layout, np.eye(n)[:, :2])
+    wide = SearchSpace(narrow.options, narrow.layout, np.eye(n)[:, :3])
+    fitter = TimeDomainFitter(None, narrow, [], None, ())
+    delay = effect("reflex_delay")
+    assert fitter.key([0.1, -0.2, 0.05], (delay,)) == fitter.key([0.1, -0.2, 0.0, 0.05], (delay,), space=wide)
+    assert fitter.key([0.1, -0.2, 0.05], (delay,)) != fitter.key([0.1, -0.2, 0.01, 0.05], (delay,), space=wide)
+    assert fitter.key([0.1, -0.2], ()) != fitter.key([0.1, -0.2, 0.05], (delay,))  # the effect is part of the model
 
 
 def test_a_refit_step_simulates_the_training_half_only_and_gets_its_outputs_exactly():

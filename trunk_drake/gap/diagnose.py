@@ -145,7 +145,7 @@ def _report(data, noise, nominal, space: SearchSpace, found: SearchResult, left:
                        **{k: (None if v[i] is None else v[i][:, 0]) for k, v in variants.items()}}
               for i, t in enumerate(data)}
     return GapDiagnosis(where=locate_gap(data, nominal, noise, outputs), ranking=found.ranking, selected=found.selected,
-                        verdict=_verdict(found, left, shrink, on_bounds, settings.threshold), shrink=shrink, final=final,
+                        verdict=_verdict(found, left, shrink, on_bounds, settings), shrink=shrink, final=final,
                         noise_rad=noise.tolist(), wall_time_s=_time.perf_counter() - wall,
                         options={"threshold": settings.threshold, "max_effects": settings.max_effects,
                                  "refine": settings.refine, "gains_first": settings.gains_first, "outputs": list(outputs),
@@ -169,15 +169,17 @@ def _on_bounds(space: SearchSpace, found: SearchResult, tolerance: float = 0.01)
     return flagged
 
 
-def _verdict(found: SearchResult, left: dict, shrink: dict, on_bounds: list[str], threshold: float) -> str:
+def _verdict(found: SearchResult, left: dict, shrink: dict, on_bounds: list[str], settings: Settings) -> str:
+    threshold = settings.threshold
     if found.selected:
         claims = ", ".join(f"{s['effect']} (dBIC {s['delta_bic']:.0f})" for s in found.steps
                            if s["action"] == "add" and s["effect"] in found.selected)
         explained = f"missing effect{'s' if len(found.selected) > 1 else ''}: {claims}"
     elif found.scores["nominal_heldout_chi2"] - found.scores["refit_heldout_chi2"] > threshold:
+        against = ("on top of the gains widened as far as they pass" if settings.gains_first else
+                   "and by more than the gains refitted along as many further directions")
         explained = ("mis-set parameters: a refit of the nominal reflex gains reduces the held-out gap; "
-                     f"no candidate effect improves on it by more than dBIC {threshold:g} and by more than the gains "
-                     "refitted along as many further directions")
+                     f"no candidate effect improves on it by more than dBIC {threshold:g} {against}")
     else:
         explained = "no significant gap that a refit or a candidate effect explains beyond measurement noise"
     if on_bounds:

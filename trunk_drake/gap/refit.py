@@ -69,8 +69,11 @@ class TimeDomainFitter:
     def key(self, x, effects, on=None, space: SearchSpace | None = None, train_only: bool = False) -> tuple:
         """The cache key of x simulated on the step sequences of the run keyed `on` (`replay_key`), over the
         training halves only if `train_only`."""
-        rank = (space or self.space).rank  # the same x means other gains along more directions
-        key = replay_key((tuple(e.name for e in effects), rank, np.asarray(x, float).tobytes()), on)
+        space = space or self.space  # keyed by the model simulated: its gains (rounded far below any fit's step) and effects,
+        #   so a point of a wider space with its further coordinates at 0 is the narrower point's run, not a new one
+        x = np.asarray(x, float)
+        gains = np.round(space.log_gains(x[:space.rank]), 12) + 0.0  # + 0.0: no -0.0
+        key = replay_key((tuple(e.name for e in effects), gains.tobytes(), x[space.rank:].tobytes()), on)
         return (*key, "train") if train_only else key
 
     def outputs_of(self, points, effects, on=None, space: SearchSpace | None = None, train_only: bool = False) -> list:

@@ -33,10 +33,14 @@ class SearchSpace:
     def rank(self) -> int:
         return self.directions.shape[1]
 
+    def log_gains(self, coordinates) -> np.ndarray:
+        """log10 of the gains of `layout` after moving the nominal ones by directions @ coordinates (clipped to the gain bounds)."""
+        nominal = np.log10([self.layout.fixed[n.split(".", 1)[0]][n.split(".", 1)[1]] for n in self.layout.names])
+        return np.clip(nominal + self.directions @ np.asarray(coordinates, float), *np.log10(GAIN_BOUNDS))
+
     def gains(self, coordinates) -> dict:
         """Group gains after moving the nominal log10 gains by directions @ coordinates (clipped to the gain bounds)."""
-        nominal = np.log10([self.layout.fixed[n.split(".", 1)[0]][n.split(".", 1)[1]] for n in self.layout.names])
-        return self.layout.gains(np.clip(nominal + self.directions @ np.asarray(coordinates, float), *np.log10(GAIN_BOUNDS)))
+        return self.layout.gains(self.log_gains(coordinates))
 
     def options_for(self, x, effects) -> TrunkOptions:
         """The diagram's options for x = [gain coordinates, effect parameters]."""
