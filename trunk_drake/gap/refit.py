@@ -60,7 +60,7 @@ class TimeDomainFitter:
     def __init__(self, simulator: WorkerPool, space: SearchSpace, trials, noise, outputs, counter: dict | None = None):
         self.simulator, self.space, self.trials, self.noise, self.outputs = simulator, space, trials, noise, outputs
         self.counter = counter if counter is not None else {"simulations": 0}  # shared with whoever reports progress
-        self.cache: dict = {}  # (effect names, gain directions, x, key of the run replayed or None) -> (outputs, steps)
+        self.cache: dict = {}  # `key` (the model simulated, the run replayed or None) -> (outputs, steps)
 
     @property
     def simulations(self) -> int:
