@@ -285,6 +285,10 @@ def test_the_check_also_simulates_a_linear_fit_with_the_current_gains():
     search.settings = Settings(check=1)  # only the best `check` rows by linear dBIC are simulated
     rows = search.check(current, [{"effect": "trunk_in_space", "linear_delta_bic": v, "linear_fit": linear} for v in (500.0, 400.0)])
     assert "checked_delta_bic" in rows[0] and "checked_delta_bic" not in rows[1]
+    for gains_first in (False, True):  # below the threshold linearly: simulated only when the gains were widened first
+        search.settings = Settings(gains_first=gains_first)
+        row, = search.check(current, [{"effect": "trunk_in_space", "linear_delta_bic": -10.0, "linear_fit": linear}])
+        assert ("checked_delta_bic" in row) == gains_first
 
 
 def test_a_run_replayed_on_its_own_step_sequences_is_not_simulated_again():
