@@ -106,8 +106,8 @@ def _relative_paths(value, out: Path):
         return type(value)(_relative_paths(v, out) for v in value)
     if isinstance(value, (str, Path)) and str(value):
         try:  # a file or folder the run wrote; text is left as it is
-            return str(Path(value).resolve(strict=True).relative_to(out.resolve()))
-        except (OSError, ValueError):
+            return _relative(str(Path(value).resolve(strict=True)), out)
+        except OSError:
             return value
     return value
 

@@ -236,8 +236,8 @@ class _Search:
         With `gains_first` the best `check` rows are simulated whatever their linear dBIC: on top of widened
         gains the effects' signals are small and the linear screening's error is of their size
         (bushing_stiffness_scale1.6: linear dBIC -10 on top of 3 gain directions, the truth worth 48; not checked)."""
-        passes = (lambda r: True) if self.settings.gains_first else (lambda r: r["linear_delta_bic"] > self.settings.threshold)
-        checked = [r for r in rows if "linear_fit" in r and passes(r)][:self.settings.check]
+        checked = [r for r in rows if "linear_fit" in r
+                   and (self.settings.gains_first or r["linear_delta_bic"] > self.settings.threshold)][:self.settings.check]
         rank, n = self.space.rank, current.x.size
         points, effects = [], []
         for r in checked:
@@ -306,10 +306,14 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
     base = s.regain(fitter.fit((), np.zeros(rank), np.arange(rank), max_iterations=3))
     s.say(f"refitted the nominal gains: held-out chi2 {base.heldout_chi2:.0f}")
     steps = []
+
+    def record(step: dict) -> None:  # a selection step, with the simulations so far
+        steps.append({"simulations": fitter.simulations, **step})
+
     if settings.gains_first and (widened := s.widen(base)) is not None:
         base, wider, dbic = widened
         s.adopt(wider)
-        steps.append({"simulations": fitter.simulations, "action": "gains", "directions": wider.rank, "delta_bic": dbic,
+        record({"action": "gains", "directions": wider.rank, "delta_bic": dbic,
                       "model": [], "heldout_chi2": base.heldout_chi2})
         s.say(f"gains first: refitted along {wider.rank} directions (dBIC {dbic:.1f}): held-out chi2 {base.heldout_chi2:.0f}")
     ranking = s.screen_additions(base, list(s.candidates))
@@ -332,7 +336,7 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
         chosen, tried = s.claim(current, fits)
         if chosen is None:
             best = max(fits, key=lambda n: s.dbic(current, fits[n], s.candidates[n]), default=None)
-            steps.append({"simulations": fitter.simulations, "action": "stop", "model": list(current.effects), "best_candidate": best,
+            record({"action": "stop", "model": list(current.effects), "best_candidate": best,
                           "delta_bic": s.dbic(current, fits[best], s.candidates[best]) if best else None,
                           "matched_by_gains": tried,  # each passed its dBIC and failed against the gains
                           "heldout_chi2": current.heldout_chi2})
@@ -341,7 +345,7 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
         joint = s.joint(current.effects + (name,), fits[name].x)
         current = joint if joint.outputs is not None and joint.train_chi2 <= fits[name].train_chi2 else fits[name]
         s.models[frozenset(current.effects)] = current
-        steps.append({"simulations": fitter.simulations, "action": "add", "effect": name, "delta_bic": dbic, "beats_gain_rival_by": chosen["beats_gain_rival_by"], "on_widened_gains": chosen.get("on_widened_gains"),
+        record({"action": "add", "effect": name, "delta_bic": dbic, "beats_gain_rival_by": chosen["beats_gain_rival_by"], "on_widened_gains": chosen.get("on_widened_gains"),
                       "model": list(current.effects), "heldout_chi2": current.heldout_chi2, "values": current.values})
         s.say(f"added {name} (dBIC {dbic:.1f}); joint refit: held-out chi2 {current.heldout_chi2:.0f}")
         while len(current.effects) > 1:  # every selected effect must still earn its place
@@ -349,9 +353,9 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
             own = {n: s.dbic(w, current, s.candidates[n]) for n, w in without.items()}
             weakest = min(own, key=own.get)
             if own[weakest] > settings.threshold:
-                steps.append({"simulations": fitter.simulations, "action": "keep", "model": list(current.effects), "own_delta_bic": own})
+                record({"action": "keep", "model": list(current.effects), "own_delta_bic": own})
                 break
-            steps.append({"simulations": fitter.simulations, "action": "drop", "effect": weakest, "own_delta_bic": own,
+            record({"action": "drop", "effect": weakest, "own_delta_bic": own,
                           "model": [n for n in current.effects if n != weakest]})
             s.say(f"dropped {weakest} (own dBIC {own[weakest]:.1f})")
             dropped.add(weakest)
@@ -360,7 +364,7 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
     widened = s.widen(current)
     if widened:
         final, final_space, dbic = widened
-        steps.append({"simulations": fitter.simulations, "action": "gains", "directions": final_space.rank, "delta_bic": dbic, "model": list(current.effects),
+        record({"action": "gains", "directions": final_space.rank, "delta_bic": dbic, "model": list(current.effects),
                       "heldout_chi2": final.heldout_chi2})
         s.say(f"gains refitted along {final_space.rank} directions (dBIC {dbic:.1f}): held-out chi2 {final.heldout_chi2:.0f}")
         if current.effects:  # the effects were fitted with the narrower gains: refitted together with the widened ones
