@@ -291,6 +291,51 @@ def test_the_check_also_simulates_a_linear_fit_with_the_current_gains():
         assert ("checked_delta_bic" in row) == gains_first
 
 
+def test_with_gains_first_an_added_effect_is_refitted_from_several_magnitudes():
+    """Gains widened first take up part of an effect, and a refit from a small start stays there
+    (extra_damping_damping16: 1.1 Nms/rad from a start of 1, 16 from 16): with gains first the refit also starts at
+    fractions of the effect's range with the current gains, and the best on the training halves is kept."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.search import START_FRACTIONS, Settings, _Search
+    from trunk_drake.gap.space import Fit, SearchSpace
+    from trunk_drake.optim.gains import GainLayout
+
+    def chi2(x):  # two basins: the gains absorbing a little damping (1400), and the truth, 16 (1000)
+        return min(1400.0 + 1e3 * (x[1] - 1.0) ** 2, 1000.0 + 1e3 * (x[1] - 16.0) ** 2)
+
+    class Fitter:
+        def __init__(self):
+            self.starts = []
+
+        def outputs_of(self, points, effects, space=None):
+            return [np.asarray(p, float) for p in points]
+
+        def chi2(self, x, which):
+            return chi2(x) + (0.0 if which == "train" else 50.0)
+
+        def fit(self, effects, x0, free, max_iterations=2, space=None):  # to the bottom of the start's basin
+            self.starts.append(np.asarray(x0, float))
+            x = np.array([x0[0], 16.0 if x0[1] > 8.5 else 1.0])
+            return Fit(("extra_damping",), x, chi2(x), chi2(x) + 50.0, {"extra_damping": {"damping": x[1]}}, [x])
+
+    layout = GainLayout(("kv.sacrospinalis",), {"kp": {}, "kv": {"sacrospinalis": 0.1}})
+    e = effect("extra_damping")
+    screen = SimpleNamespace(trials=[SimpleNamespace(steady_outputs=np.zeros((1000, 1)))])
+    current = Fit((), np.array([0.5]), 1500.0, 1550.0, {})
+    lo, hi = e.parameters[0].lower, e.parameters[0].upper
+    for gains_first in (False, True):
+        fitter = Fitter()
+        search = _Search(SearchSpace(TrunkOptions(), layout, np.eye(1)), screen, fitter, (e,), Settings(gains_first=gains_first),
+                         np.zeros((1, 0)), None)
+        linear = Fit(("extra_damping",), np.array([0.5, 2.0]), 0.0, 0.0, {})  # the check keeps the catalogue's start, 1
+        fits = search.refine(current, [{"effect": "extra_damping", "linear_delta_bic": 500.0, "linear_fit": linear}])
+        expected = [[0.5, 1.0]] + ([[0.5, lo + f * (hi - lo)] for f in START_FRACTIONS] if gains_first else [])
+        assert np.allclose(fitter.starts, expected)
+        assert fits["extra_damping"].x[1] == (16.0 if gains_first else 1.0)
+
+
 def test_a_run_replayed_on_its_own_step_sequences_is_not_simulated_again():
     from trunk_drake.gap.refit import TimeDomainFitter
     from trunk_drake.gap.space import SearchSpace
