@@ -265,7 +265,7 @@ class _Search:
         is kept). Gains widened first take up part of an effect, and its refit from a small start stays there:
         extra_damping_damping16 refitted from 1 Nms/rad with 4 gain directions stopped at 1.1 (held-out chi2
         18,377), from 16 at 17,970 (the truth: 17,949), and the simulation at the start did not tell (training
-        chi2 18,633 at 1, 25,006 at 16; /work/exp/damping_starts.py)."""
+        chi2 18,633 at 1, 25,006 at 16)."""
         if not self.settings.gains_first:
             return [x]
         lo, hi, _ = self.space.bounds(held)
