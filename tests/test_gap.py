@@ -386,3 +386,42 @@ def test_a_refit_step_simulates_the_training_half_only_and_gets_its_outputs_exac
     assert point is not None and no_point is None  # no operating point from a part of the window
     centred = [y[train] - y[train].mean(axis=0) for y in (whole, part)]
     np.testing.assert_allclose(centred[1], centred[0], rtol=0, atol=1e-12)
+
+
+def test_the_polish_refits_every_gain_direction_and_drops_an_effect_the_gains_then_explain():
+    """`_Search.polish`: the final model refitted along every gain direction with its effects (the coordinates
+    of the narrower space kept, zeros along the new directions), then each effect refitted away on those gains:
+    one whose own dBIC no longer passes is dropped, one that passes is kept."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.search import POLISH_ITERATIONS, Settings, _Search
+    from trunk_drake.gap.space import Fit, SearchSpace
+    from trunk_drake.optim.gains import GainLayout
+
+    class Fitter:  # held-out chi2 by the effects fitted: both 1000, the delay alone 1005, the mass alone 1400
+        def __init__(self):
+            self.calls = []
+
+        def fit(self, effects, x0, free, max_iterations=2, space=None):
+            names = tuple(e.name for e in effects)
+            self.calls.append((names, np.asarray(x0, float), space.rank, max_iterations))
+            chi2 = {("reflex_delay", "upper_body_mass"): 1000.0, ("reflex_delay",): 1400.0, ("upper_body_mass",): 1005.0,
+                    (): 2000.0}[names]
+            return Fit(names, np.asarray(x0, float), chi2 - 100.0, chi2, {}, outputs=[])
+
+    layout = GainLayout(("kp.sacrospinalis", "kv.sacrospinalis", "kp.psoas_major"))
+    space = SearchSpace(TrunkOptions(), layout, np.eye(3)[:, :2])
+    fitter, steps = Fitter(), []
+    search = _Search(space, SimpleNamespace(trials=[SimpleNamespace(steady_outputs=np.zeros((1000, 1)))]), fitter,
+                     (effect("reflex_delay"), effect("upper_body_mass")), Settings(), np.eye(3)[:, 2:], None)
+    final = Fit(("reflex_delay", "upper_body_mass"), np.array([0.1, 0.2, 0.05, 1.1]), 950.0, 1010.0, {})
+    fit, full = search.polish(final, space, steps.append)
+    assert full.rank == 3 and fitter.calls[0][2] == 3 and fitter.calls[0][3] == POLISH_ITERATIONS
+    np.testing.assert_array_equal(fitter.calls[0][1], [0.1, 0.2, 0.0, 0.05, 1.1])
+    assert [s["action"] for s in steps] == ["polish", "drop", "keep"]
+    assert steps[1]["effect"] == "reflex_delay" and steps[1]["own_delta_bic"]["reflex_delay"] == pytest.approx(5.0 - search.penalty)
+    assert fit.effects == ("upper_body_mass",) and fit.x.tolist() == [0.1, 0.2, 0.0, 1.1]
+    assert steps[2]["own_delta_bic"] == {"upper_body_mass": pytest.approx(995.0 - search.penalty)}
+    worse = Fit(final.effects, final.x, 800.0, 1010.0, {})  # the polish fits the training halves worse: nothing changes
+    assert search.polish(worse, space, steps.append) == (worse, space)

@@ -103,9 +103,13 @@ def _step(step: dict) -> str:
     if step["action"] == "gains":
         return (f"gains refitted along {step['directions']} directions (dBIC {step['delta_bic']:.1f}): mis-set gains beyond "
                 f"the identifiable ones; model: {model}")
+    if step["action"] == "polish":
+        values = "; ".join(f"{n}: " + ", ".join(f"{k} = {v:.4g}" for k, v in vals.items()) for n, vals in step["values"].items())
+        return f"polish: gains along all {step['directions']} directions refitted with the effects{': ' + values if values else ''}; model: {model}"
     if step["action"] in ("keep", "drop"):
         own = ", ".join(f"{n} {v:.1f}" for n, v in step["own_delta_bic"].items())
-        return (f"drop **{step['effect']}**" if step["action"] == "drop" else "keep all") + f" (own dBIC: {own}); model: {model}"
+        on = f" on all {step['directions']} gain directions" if "directions" in step else ""
+        return (f"drop **{step['effect']}**" if step["action"] == "drop" else "keep all") + f" (own dBIC{on}: {own}); model: {model}"
     matched = step.get("matched_by_gains") or []
     if matched:
         names = ", ".join(f"{m['effect']} (dBIC {m['delta_bic']:.1f}; {_against_gains(m)})" for m in matched)
