@@ -161,18 +161,23 @@ def _lag_kinematics(trials, lag_s: float):
     return out
 
 
-def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers: int, candidates=None,
-             gains_first: bool = False):
-    """Simulate the case's truth, diagnose it blind (among `candidates`, default the whole
-    catalogue; `gains_first`: see `diagnose_gap`); returns (result row, diagnosis)."""
+def case_trials(model, case: Case, nominal: TrunkOptions, noise_rad: float):
+    """The case's multisine designs, truth options, noise-free trials and "measured" trials (noise added)."""
     designs = [("1hz_a", 1.0, case.seed), ("1hz_b", 1.0, case.seed + 1000), ("3hz", 3.0, case.seed + 2000)]
-    start = time.perf_counter()
     truth = truth_options(nominal, case)
     clean = clean_trials(model, truth, designs)
     if case.kind == "outside" and case.effects[0][0] == "kinematics_lag":
         clean = _lag_kinematics(clean, case.effects[0][1]["lag_s"])
+    return designs, truth, clean, add_noise(clean, noise_rad, seed=case.seed)
+
+
+def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers: int, candidates=None,
+             gains_first: bool = False):
+    """Simulate the case's truth, diagnose it blind (among `candidates`, default the whole
+    catalogue; `gains_first`: see `diagnose_gap`); returns (result row, diagnosis)."""
+    start = time.perf_counter()
+    designs, truth, clean, noisy = case_trials(model, case, nominal, noise_rad)
     observability = _observability(model, case, nominal, designs, clean, noise_rad) if case.effects else {}
-    noisy = add_noise(clean, noise_rad, seed=case.seed)
     diagnosis = diagnose_gap(model, noisy, nominal, noise=noise_rad, candidates=candidates, threshold=THRESHOLD, workers=workers,
                              gains_first=gains_first)
     if case.kind == "single":

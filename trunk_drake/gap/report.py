@@ -93,10 +93,15 @@ def markdown(d, names: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _values(by_effect: dict) -> str:
+    """Fitted parameter values, effect by effect."""
+    return "; ".join(f"{n}: " + ", ".join(f"{k} = {v:.4g}" for k, v in vals.items()) for n, vals in by_effect.items())
+
+
 def _step(step: dict) -> str:
     model = " + ".join(step["model"]) or "gains only"
     if step["action"] == "add":
-        values = "; ".join(f"{n}: " + ", ".join(f"{k} = {v:.4g}" for k, v in vals.items()) for n, vals in step["values"].items())
+        values = _values(step["values"])
         against = _against_gains(step)
         return (f"add **{step['effect']}** (dBIC {step['delta_bic']:.1f}{'; ' + against if against else ''}); "
                 f"joint refit of {model}: {values}")
@@ -104,7 +109,7 @@ def _step(step: dict) -> str:
         return (f"gains refitted along {step['directions']} directions (dBIC {step['delta_bic']:.1f}): mis-set gains beyond "
                 f"the identifiable ones; model: {model}")
     if step["action"] == "polish":
-        values = "; ".join(f"{n}: " + ", ".join(f"{k} = {v:.4g}" for k, v in vals.items()) for n, vals in step["values"].items())
+        values = _values(step["values"])
         return f"polish: gains along all {step['directions']} directions refitted with the effects{': ' + values if values else ''}; model: {model}"
     if step["action"] in ("keep", "drop"):
         own = ", ".join(f"{n} {v:.1f}" for n, v in step["own_delta_bic"].items())

@@ -314,16 +314,21 @@ class _Search:
         known = self.models.get(frozenset(n for n in current.effects if n != name))
         if known is not None:
             return known
-        keep, x, k = [], [current.x[:self.space.rank]], self.space.rank
-        for n in current.effects:
+        effects, x = self.strip(current, name, self.space.rank)
+        fit = self.joint(tuple(e.name for e in effects), x)
+        self.models[frozenset(fit.effects)] = fit
+        return fit
+
+    def strip(self, fit: Fit, name: str, rank: int) -> tuple[tuple, np.ndarray]:
+        """`fit`'s effects without `name` and its x without that effect's parameters (`rank` gain coordinates first)."""
+        keep, x, k = [], [fit.x[:rank]], rank
+        for n in fit.effects:
             size = len(self.candidates[n].parameters)
             if n != name:
                 keep.append(n)
-                x.append(current.x[k:k + size])
+                x.append(fit.x[k:k + size])
             k += size
-        fit = self.joint(tuple(keep), np.concatenate(x))
-        self.models[frozenset(keep)] = fit
-        return fit
+        return self.effects(keep), np.concatenate(x)
 
     def polish(self, final: Fit, space: SearchSpace, record) -> tuple[Fit, SearchSpace]:
         """`final` (in `space`) refitted along every gain direction together with its effects, then each effect
@@ -335,16 +340,8 @@ class _Search:
         full = self.wider(self.spare.shape[1])
         more = full.rank - space.rank
 
-        def refit(effects, x0):  # rounds while each lowers the training chi2 by more than the threshold
-            fit = self.fitter.fit(effects, x0, np.arange(x0.size), max_iterations=POLISH_ITERATIONS, space=full)
-            for _ in range(POLISH_ROUNDS - 1):
-                if fit.outputs is None:
-                    break
-                again = self.fitter.fit(effects, fit.x, np.arange(x0.size), max_iterations=POLISH_ITERATIONS, space=full)
-                if again.outputs is None or fit.train_chi2 - again.train_chi2 <= self.settings.threshold:
-                    return again if again.outputs is not None and again.train_chi2 < fit.train_chi2 else fit
-                fit = again
-            return fit
+        def refit(effects, x0):
+            return polish_fit(self.fitter, effects, x0, full, self.settings.threshold)
 
         x0 = np.concatenate([final.x[:space.rank], np.zeros(more), final.x[space.rank:]])
         fit = refit(self.effects(final.effects), x0)
@@ -354,13 +351,8 @@ class _Search:
                 "values": fit.values})
         self.say(f"polished along all {full.rank} gain directions: {fit.values}, held-out chi2 {fit.heldout_chi2:.0f}")
         while fit.effects:
-            without, own, k = {}, {}, full.rank
-            for name in fit.effects:
-                size = len(self.candidates[name].parameters)
-                x = np.concatenate([fit.x[:k], fit.x[k + size:]])
-                without[name] = refit(self.effects([n for n in fit.effects if n != name]), x)
-                own[name] = self.dbic(without[name], fit, self.candidates[name])
-                k += size
+            without = {name: refit(*self.strip(fit, name, full.rank)) for name in fit.effects}
+            own = {name: self.dbic(w, fit, self.candidates[name]) for name, w in without.items()}
             weakest = min(own, key=own.get)
             if own[weakest] > self.settings.threshold:
                 record({"action": "keep", "model": list(fit.effects), "own_delta_bic": own, "directions": full.rank})
@@ -370,6 +362,23 @@ class _Search:
             self.say(f"dropped {weakest} on all gain directions (own dBIC {own[weakest]:.1f})")
             fit = without[weakest]
         return fit, full
+
+
+def polish_fit(fitter: TimeDomainFitter, effects, x0, space: SearchSpace, threshold: float) -> Fit:
+    """`effects` and every coordinate of `space` refitted from x0 in rounds of `POLISH_ITERATIONS` secant steps, each
+    from where the last stopped, while a round lowers the training chi2 by more than `threshold` (at most
+    `POLISH_ROUNDS`)."""
+    fit = fitter.fit(effects, x0, np.arange(x0.size), max_iterations=POLISH_ITERATIONS, space=space)
+    for _ in range(POLISH_ROUNDS - 1):
+        if fit.outputs is None:
+            break
+        again = fitter.fit(effects, fit.x, np.arange(x0.size), max_iterations=POLISH_ITERATIONS, space=space)
+        if again.outputs is None or again.train_chi2 >= fit.train_chi2:
+            break
+        fit, gained = again, fit.train_chi2 - again.train_chi2
+        if gained <= threshold:
+            break
+    return fit
 
 
 def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainFitter, candidates, settings: Settings,
