@@ -289,6 +289,11 @@ def test_the_check_also_simulates_a_linear_fit_with_the_current_gains():
         search.settings = Settings(gains_first=gains_first)
         row, = search.check(current, [{"effect": "trunk_in_space", "linear_delta_bic": -10.0, "linear_fit": linear}])
         assert ("checked_delta_bic" in row) == gains_first
+    search.settings, search.all_gains = Settings(check=1), True  # on all gain directions: every row, at five points
+    simulated = []
+    search.fitter.outputs_of = lambda points, effects, space=None: simulated.append(len(points)) or [np.asarray(p, float) for p in points]
+    rows = search.check(current, [{"effect": "trunk_in_space", "linear_delta_bic": -10.0, "linear_fit": linear} for _ in range(2)])
+    assert all("checked_delta_bic" in r for r in rows) and simulated == [10]
 
 
 def test_with_gains_first_an_added_effect_is_refitted_from_several_magnitudes():
@@ -425,3 +430,43 @@ def test_the_polish_refits_every_gain_direction_and_drops_an_effect_the_gains_th
     assert steps[2]["own_delta_bic"] == {"upper_body_mass": pytest.approx(995.0 - search.penalty)}
     worse = Fit(final.effects, final.x, 800.0, 1010.0, {})  # the polish fits the training halves worse: nothing changes
     assert search.polish(worse, space, steps.append) == (worse, space)
+
+
+def test_after_the_polish_the_selection_goes_on_on_every_gain_direction():
+    """`select` with `_Search.all_gains` (the search after the polish): no gain direction is left to rival an
+    effect, so a further effect is claimed on its own dBIC; the joint refit and the backward test run in rounds
+    like the polish (every coordinate free), and the polished model's gains are not refitted again first."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.search import POLISH_ITERATIONS, Settings, _Search, select
+    from trunk_drake.gap.space import Fit, SearchSpace
+    from trunk_drake.optim.gains import GainLayout
+
+    class Fitter:  # held-out chi2 by the effects fitted: both 1000, the delay alone 1400, the mass alone 1300
+        def __init__(self):
+            self.calls = []
+
+        def fit(self, effects, x0, free, max_iterations=2, space=None):
+            names = tuple(e.name for e in effects)
+            self.calls.append((names, list(free), max_iterations))
+            chi2 = {("reflex_delay", "upper_body_mass"): 1000.0, ("reflex_delay",): 1400.0, ("upper_body_mass",): 1300.0}[names]
+            return Fit(names, np.asarray(x0, float), chi2 - 100.0, chi2, {}, outputs=[])
+
+    layout = GainLayout(("kp.sacrospinalis", "kv.sacrospinalis"))
+    fitter, steps = Fitter(), []
+    search = _Search(SearchSpace(TrunkOptions(), layout, np.eye(2)), SimpleNamespace(trials=[SimpleNamespace(
+        steady_outputs=np.zeros((1000, 1)))]), fitter, (effect("reflex_delay"), effect("upper_body_mass")), Settings(),
+        np.zeros((2, 0)), None)
+    search.all_gains = True
+    polished = Fit(("reflex_delay",), np.array([0.1, 0.2, 0.05]), 1300.0, 1400.0, {}, outputs=[])
+    added = Fit(("reflex_delay", "upper_body_mass"), np.array([0.1, 0.2, 0.05, 1.1]), 950.0, 1050.0, {}, outputs=[])
+    screened = []
+    search.screen_additions = lambda current, names: screened.append(names) or [{"effect": n} for n in names]
+    search.refine = lambda current, rows: {"upper_body_mass": added}
+    final = select(search, polished, steps.append)
+    assert screened == [["upper_body_mass"]] and final.effects == ("reflex_delay", "upper_body_mass")
+    assert [s["action"] for s in steps] == ["add", "keep"] and all(s["directions"] == 2 for s in steps)
+    assert steps[0]["delta_bic"] == pytest.approx(350.0 - search.penalty) and steps[0]["beats_gain_rival_by"] is None
+    assert all(free == list(range(len(free))) and n == POLISH_ITERATIONS for _, free, n in fitter.calls)
+    assert [c[0] for c in fitter.calls[:2]] == [("reflex_delay", "upper_body_mass")] * 2  # the joint refit, 2 rounds

@@ -100,10 +100,11 @@ def _values(by_effect: dict) -> str:
 
 def _step(step: dict) -> str:
     model = " + ".join(step["model"]) or "gains only"
+    on = f" on all {step['directions']} gain directions" if "directions" in step else ""
     if step["action"] == "add":
         values = _values(step["values"])
         against = _against_gains(step)
-        return (f"add **{step['effect']}** (dBIC {step['delta_bic']:.1f}{'; ' + against if against else ''}); "
+        return (f"add **{step['effect']}**{on} (dBIC {step['delta_bic']:.1f}{'; ' + against if against else ''}); "
                 f"joint refit of {model}: {values}")
     if step["action"] == "gains":
         return (f"gains refitted along {step['directions']} directions (dBIC {step['delta_bic']:.1f}): mis-set gains beyond "
@@ -113,14 +114,13 @@ def _step(step: dict) -> str:
         return f"polish: gains along all {step['directions']} directions refitted with the effects{': ' + values if values else ''}; model: {model}"
     if step["action"] in ("keep", "drop"):
         own = ", ".join(f"{n} {v:.1f}" for n, v in step["own_delta_bic"].items())
-        on = f" on all {step['directions']} gain directions" if "directions" in step else ""
         return (f"drop **{step['effect']}**" if step["action"] == "drop" else "keep all") + f" (own dBIC{on}: {own}); model: {model}"
     matched = step.get("matched_by_gains") or []
     if matched:
         names = ", ".join(f"{m['effect']} (dBIC {m['delta_bic']:.1f}; {_against_gains(m)})" for m in matched)
-        return f"stop: {names}: mis-set gains explain as much; model: {model}"
+        return f"stop{on}: {names}: mis-set gains explain as much; model: {model}"
     best = f"best remaining {step['best_candidate']} (dBIC {step['delta_bic']:.1f})" if step["best_candidate"] else "no candidate left"
-    return f"stop: {best} does not pass; model: {model}"
+    return f"stop{on}: {best} does not pass; model: {model}"
 
 
 def _against_gains(tried: dict) -> str:

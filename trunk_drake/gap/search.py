@@ -18,8 +18,10 @@ Backward steps refit the model without each selected effect and drop the weakest
 pass. At the end, the gains of the selected model are refitted along further directions while each
 passes as an effect would (held-out dBIC), and the selected effects together with them (they were fitted
 with the narrower gains, and trade off against the wider ones): the final model then explains mis-set gains
-beyond the identifiable ones too. Last, the polish (`_Search.polish`): the model refitted along every gain direction
-with its effects, each effect dropped again unless it earns its dBIC there; the remainder of that model is tested.
+beyond the identifiable ones too. Then the polish (`_Search.polish`): the model refitted along every gain direction
+with its effects, each effect dropped again unless it earns its dBIC there. Last, the selection goes on from the
+polished model on every gain direction (`select` with `_Search.all_gains`): a further effect is claimed on its own dBIC
+(no gain direction is left to rival it), every refit in rounds like the polish. The remainder of the final model is tested.
 
 With `Settings.gains_first` the gains are widened that way before any effect is weighed: every candidate is
 then screened, ranked and claimed on top of the widened gains, and the nested test alone decides (the gain
@@ -99,6 +101,7 @@ class _Search:
         n_test = sum(t.steady_outputs[half(t, "test")].size for t in screen.trials)
         self.n_test, self.penalty = n_test, float(np.log(n_test))
         self.models: dict[frozenset, Fit] = {}  # the jointly fitted models, by effect set
+        self.all_gains = False  # searching on every gain direction (after the polish): every refit in rounds (`polish_fit`)
 
     def dbic(self, without: Fit, with_: Fit, effect) -> float:
         """Held-out evidence for `effect` in `with_` against `without`."""
@@ -116,7 +119,10 @@ class _Search:
     def regain(self, current: Fit) -> Fit:
         """`current` with its gains refitted once more (its effects held), where that fits the training halves
         better. An added effect is refitted together with the gains, so the model without it gets the same
-        chance; otherwise the effect is credited with what further gain iterations alone achieve."""
+        chance; otherwise the effect is credited with what further gain iterations alone achieve. On all gain
+        directions `current` comes from rounds that ran until they stopped gaining: returned as it is."""
+        if self.all_gains:
+            return current
         fit = self.fitter.fit(self.effects(current.effects), current.x, np.arange(self.space.rank))
         better = fit.outputs is not None and fit.train_chi2 < current.train_chi2
         return fit if better else current
@@ -251,19 +257,28 @@ class _Search:
         reaches the noise floor. A simulation is exact. The refits then start from simulations already made.
         With `gains_first` the best `check` rows are simulated whatever their linear dBIC: on top of widened
         gains the effects' signals are small and the linear screening's error is of their size
-        (bushing_stiffness_scale1.6: linear dBIC -10 on top of 3 gain directions, the truth worth 48; not checked)."""
-        checked = [r for r in rows if "linear_fit" in r
-                   and (self.settings.gains_first or r["linear_delta_bic"] > self.settings.threshold)][:self.settings.check]
+        (bushing_stiffness_scale1.6: linear dBIC -10 on top of 3 gain directions, the truth worth 48; not checked).
+        On all gain directions (`all_gains`) every row is simulated, also at `START_FRACTIONS` of the effect's range
+        with the polished gains: on golgi_feedback_gain0.3's polished gains the Golgi feedback screened at linear
+        dBIC 2.1, seventh of 11, and refined from its check at 182."""
+        wide = self.settings.gains_first or self.all_gains
+        checked = [r for r in rows if "linear_fit" in r and (wide or r["linear_delta_bic"] > self.settings.threshold)]
+        checked = checked if self.all_gains else checked[:self.settings.check]
         rank, n = self.space.rank, current.x.size
         points, effects = [], []
         for r in checked:
             held = self.effects(current.effects) + (self.candidates[r["effect"]],)
             lin = r["linear_fit"].x
-            points += [lin, np.concatenate([current.x[:rank], lin[rank:]]), np.concatenate([current.x, self.space.bounds(held)[2][n:]])]
-            effects += [held] * 3
+            lo, hi, start = self.space.bounds(held)
+            at = [lin, np.concatenate([current.x[:rank], lin[rank:]]), np.concatenate([current.x, start[n:]])]
+            if self.all_gains:  # and across the effect's range with the polished gains
+                at += [np.concatenate([current.x, lo[n:] + f * (hi[n:] - lo[n:])]) for f in START_FRACTIONS]
+            points += at
+            effects += [held] * len(at)
         outputs = self.fitter.outputs_of(points, effects)
+        per = len(points) // max(len(checked), 1)
         for k, row in enumerate(checked):
-            best = min(range(3 * k, 3 * k + 3), key=lambda i: self.fitter.chi2(outputs[i], "train"))
+            best = min(range(per * k, per * k + per), key=lambda i: self.fitter.chi2(outputs[i], "train"))
             row["linear_fit"] = dataclasses.replace(row["linear_fit"], x=points[best])
             row["checked_values"] = self.space.values(points[best], effects[best])[-1]
             row["checked_delta_bic"] = self.dbic(current, dataclasses.replace(
@@ -285,15 +300,15 @@ class _Search:
 
     def refine(self, current: Fit, rows: list[dict]) -> dict[str, Fit]:
         """Nonlinear refits of the best `refine` screened rows after the check (the added effect's parameters and
-        the gains, from `starts`)."""
+        the gains, from `starts`); on all gain directions of the best checked row only (each row was simulated at
+        five points there, and a refit in rounds costs 120-300 simulations)."""
         fits = {}
         rows[:] = self.check(current, rows)
-        for row in [r for r in rows if "linear_fit" in r][:self.settings.refine]:
+        for row in [r for r in rows if "linear_fit" in r][:1 if self.all_gains else self.settings.refine]:
             lin = row.pop("linear_fit")
             e = self.candidates[row["effect"]]
             held = self.effects(current.effects) + (e,)
-            fit = min((self.fitter.fit(held, x0, self.added(current, x0.size)) for x0 in self.starts(current, held, lin.x)),
-                      key=lambda f: f.train_chi2)
+            fit = min((self.fit_added(current, held, x0) for x0 in self.starts(current, held, lin.x)), key=lambda f: f.train_chi2)
             if fit.outputs is None:
                 row["status"] = "failed: the refitted model diverged in simulation"
             else:
@@ -305,8 +320,18 @@ class _Search:
             row.pop("linear_fit", None)
         return fits
 
+    def fit_added(self, current: Fit, held, x0: np.ndarray) -> Fit:
+        """The effects `held` (`current`'s and an added one, last) refitted from x0: the added effect and the gains
+        (`added`); on all gain directions every coordinate, in rounds like the polish."""
+        if self.all_gains:
+            return polish_fit(self.fitter, held, x0, self.space, self.settings.threshold)
+        return self.fitter.fit(held, x0, self.added(current, x0.size))
+
     def joint(self, names, x0, space: SearchSpace | None = None) -> Fit:
-        """Gains and every effect of `names` refitted together with nonlinear simulations (in `space`, default the fitter's)."""
+        """Gains and every effect of `names` refitted together with nonlinear simulations (in `space`, default the
+        fitter's); on all gain directions in rounds like the polish."""
+        if self.all_gains and space is None:
+            return polish_fit(self.fitter, self.effects(names), x0, self.space, self.settings.threshold)
         return self.fitter.fit(self.effects(names), x0, np.arange(len(x0)), max_iterations=JOINT_ITERATIONS, space=space)
 
     def without(self, current: Fit, name: str) -> Fit:
@@ -318,6 +343,10 @@ class _Search:
         fit = self.joint(tuple(e.name for e in effects), x)
         self.models[frozenset(fit.effects)] = fit
         return fit
+
+    def on_all_gains(self) -> dict:
+        """A step's mark when it is taken on every gain direction (after the polish)."""
+        return {"directions": self.space.rank} if self.all_gains else {}
 
     def strip(self, fit: Fit, name: str, rank: int) -> tuple[tuple, np.ndarray]:
         """`fit`'s effects without `name` and its x without that effect's parameters (`rank` gain coordinates first)."""
@@ -408,45 +437,7 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
     ranking.sort(key=lambda r: (-r.get("delta_bic", -np.inf), -r.get("checked_delta_bic", -np.inf), -r["linear_delta_bic"]))
     s.models[frozenset()] = base
 
-    current, dropped = base, set()
-    while len(current.effects) < settings.max_effects:
-        if not current.effects:
-            rows, fits = ranking, singles
-        else:
-            remaining = [n for n in s.candidates if n not in current.effects and n not in dropped]
-            if not remaining:
-                break
-            current = s.regain(current)
-            s.models[frozenset(current.effects)] = current
-            rows = s.screen_additions(current, remaining)
-            fits = s.refine(current, rows)
-        chosen, tried = s.claim(current, fits)
-        if chosen is None:
-            best = max(fits, key=lambda n: s.dbic(current, fits[n], s.candidates[n]), default=None)
-            record({"action": "stop", "model": list(current.effects), "best_candidate": best,
-                          "delta_bic": s.dbic(current, fits[best], s.candidates[best]) if best else None,
-                          "matched_by_gains": tried,  # each passed its dBIC and failed against the gains
-                          "heldout_chi2": current.heldout_chi2})
-            break
-        dbic, name = chosen["delta_bic"], chosen["effect"]
-        joint = s.joint(current.effects + (name,), fits[name].x)
-        current = joint if joint.outputs is not None and joint.train_chi2 <= fits[name].train_chi2 else fits[name]
-        s.models[frozenset(current.effects)] = current
-        record({"action": "add", "effect": name, "delta_bic": dbic, "beats_gain_rival_by": chosen["beats_gain_rival_by"], "on_widened_gains": chosen.get("on_widened_gains"),
-                      "model": list(current.effects), "heldout_chi2": current.heldout_chi2, "values": current.values})
-        s.say(f"added {name} (dBIC {dbic:.1f}); joint refit: held-out chi2 {current.heldout_chi2:.0f}")
-        while len(current.effects) > 1:  # every selected effect must still earn its place
-            without = {n: s.without(current, n) for n in current.effects}
-            own = {n: s.dbic(w, current, s.candidates[n]) for n, w in without.items()}
-            weakest = min(own, key=own.get)
-            if own[weakest] > settings.threshold:
-                record({"action": "keep", "model": list(current.effects), "own_delta_bic": own})
-                break
-            record({"action": "drop", "effect": weakest, "own_delta_bic": own,
-                          "model": [n for n in current.effects if n != weakest]})
-            s.say(f"dropped {weakest} (own dBIC {own[weakest]:.1f})")
-            dropped.add(weakest)
-            current = without[weakest]
+    current = select(s, base, record, first=(ranking, singles))
     final, final_space = current, s.space
     widened = s.widen(current)
     if widened:
@@ -461,5 +452,57 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
                 steps[-1].update(values=final.values, heldout_chi2=final.heldout_chi2, simulations=fitter.simulations)
                 s.say(f"effects refitted with the widened gains: {final.values}, held-out chi2 {final.heldout_chi2:.0f}")
     final, final_space = s.polish(final, final_space, record)
+    if len(final.effects) < settings.max_effects:  # on every gain direction, a further effect may now earn its place
+        s.adopt(final_space)
+        s.all_gains, s.models = True, {frozenset(final.effects): final}
+        final = select(s, final, record, dropped={step["effect"] for step in steps if step["action"] == "drop" and "directions" in step})
     return SearchResult(base, ranking, list(final.effects), final, steps,
                         {"n_heldout": s.n_test, "penalty": s.penalty, "refit_heldout_chi2": base.heldout_chi2}, final_space)
+
+
+def select(s: _Search, current: Fit, record, first: tuple | None = None, dropped: set | None = None) -> Fit:
+    """Forward and backward selection from `current` in `s`'s space: each step screens and refines the candidates
+    not in the model (nor `dropped`; `first`: the rows and fits of the first step, already made), claims the best
+    that passes (`_Search.claim`), refits the model jointly and drops the weakest effect while it does not earn its
+    own dBIC. Returns the model where no candidate passes or `max_effects` is reached."""
+    dropped = set() if dropped is None else set(dropped)
+    while len(current.effects) < s.settings.max_effects:
+        if first is not None:
+            (rows, fits), first = first, None
+        else:
+            remaining = [n for n in s.candidates if n not in current.effects and n not in dropped]
+            if not remaining:
+                break
+            current = s.regain(current)
+            s.models[frozenset(current.effects)] = current
+            rows = s.screen_additions(current, remaining)
+            fits = s.refine(current, rows)
+        chosen, tried = s.claim(current, fits)
+        if chosen is None:
+            best = max(fits, key=lambda n: s.dbic(current, fits[n], s.candidates[n]), default=None)
+            record({"action": "stop", "model": list(current.effects), "best_candidate": best,
+                    "delta_bic": s.dbic(current, fits[best], s.candidates[best]) if best else None,
+                    "matched_by_gains": tried,  # each passed its dBIC and failed against the gains
+                    "heldout_chi2": current.heldout_chi2, **s.on_all_gains()})
+            break
+        dbic, name = chosen["delta_bic"], chosen["effect"]
+        joint = s.joint(current.effects + (name,), fits[name].x)
+        current = joint if joint.outputs is not None and joint.train_chi2 <= fits[name].train_chi2 else fits[name]
+        s.models[frozenset(current.effects)] = current
+        record({"action": "add", "effect": name, "delta_bic": dbic, "beats_gain_rival_by": chosen["beats_gain_rival_by"],
+                "on_widened_gains": chosen.get("on_widened_gains"), "model": list(current.effects),
+                "heldout_chi2": current.heldout_chi2, "values": current.values, **s.on_all_gains()})
+        s.say(f"added {name} (dBIC {dbic:.1f}); joint refit: held-out chi2 {current.heldout_chi2:.0f}")
+        while len(current.effects) > 1:  # every selected effect must still earn its place
+            without = {n: s.without(current, n) for n in current.effects}
+            own = {n: s.dbic(w, current, s.candidates[n]) for n, w in without.items()}
+            weakest = min(own, key=own.get)
+            if own[weakest] > s.settings.threshold:
+                record({"action": "keep", "model": list(current.effects), "own_delta_bic": own, **s.on_all_gains()})
+                break
+            record({"action": "drop", "effect": weakest, "own_delta_bic": own,
+                    "model": [n for n in current.effects if n != weakest], **s.on_all_gains()})
+            s.say(f"dropped {weakest} (own dBIC {own[weakest]:.1f})")
+            dropped.add(weakest)
+            current = without[weakest]
+    return current
