@@ -26,7 +26,8 @@ Method (the stages are modules of this package):
    the selected effects and the gains are refitted jointly, and
    backward steps drop an effect that no longer earns its place. Finally the gains are refitted
    along further directions while each passes as an effect would, and the polish refits the model
-   along every gain direction with its effects (an effect that no longer earns its dBIC is dropped).
+   along every gain direction with its effects (an effect that no longer earns its dBIC is dropped);
+   the selection then goes on from that model on every gain direction.
 3. *How far it shrinks* (`measures`): 1 - VAF and the FRF error on the held-out halves before
    (nominal), after a gains-only refit and after the selected effect(s), with bootstrap
    intervals over 2 s windows; and whether what remains is measurement noise (held-out
