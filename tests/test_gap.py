@@ -470,3 +470,17 @@ def test_after_the_polish_the_selection_goes_on_on_every_gain_direction():
     assert steps[0]["delta_bic"] == pytest.approx(350.0 - search.penalty) and steps[0]["beats_gain_rival_by"] is None
     assert all(free == list(range(len(free))) and n == POLISH_ITERATIONS for _, free, n in fitter.calls)
     assert [c[0] for c in fitter.calls[:2]] == [("reflex_delay", "upper_body_mass")] * 2  # the joint refit, 2 rounds
+
+
+def test_a_diagnosis_says_its_steps_on_stdout_or_in_a_file(tmp_path, capsys):
+    """`diagnose_gap(progress=...)`: nothing, stdout, or a file a benchmark case appends to (to follow with tail -f)."""
+    from trunk_drake.gap.diagnose import progress_lines
+
+    assert progress_lines(False, lambda: "[0 s]") is None
+    progress_lines(True, lambda: "[1 s]")("screened")
+    assert capsys.readouterr().out == "[1 s] screened\n"
+    log = tmp_path / "cases" / "no_effect_0" / "progress.log"
+    say = progress_lines(log, lambda: "[2 s]")
+    say("refitted")
+    say("added")
+    assert log.read_text() == "[2 s] refitted\n[2 s] added\n"

@@ -172,14 +172,15 @@ def case_trials(model, case: Case, nominal: TrunkOptions, noise_rad: float):
 
 
 def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers: int, candidates=None,
-             gains_first: bool = False):
+             gains_first: bool = False, progress: Path | None = None):
     """Simulate the case's truth, diagnose it blind (among `candidates`, default the whole
-    catalogue; `gains_first`: see `diagnose_gap`); returns (result row, diagnosis)."""
+    catalogue; `gains_first`: see `diagnose_gap`; its steps appended to the file `progress` if given);
+    returns (result row, diagnosis)."""
     start = time.perf_counter()
     designs, truth, clean, noisy = case_trials(model, case, nominal, noise_rad)
     observability = _observability(model, case, nominal, designs, clean, noise_rad) if case.effects else {}
     diagnosis = diagnose_gap(model, noisy, nominal, noise=noise_rad, candidates=candidates, threshold=THRESHOLD, workers=workers,
-                             gains_first=gains_first)
+                             gains_first=gains_first, progress=progress or False)
     if case.kind == "single":
         observability.update(_versus_gains(model, case, truth, noisy, diagnosis, noise_rad))
     top = diagnosis.ranking[0]["effect"] if diagnosis.ranking else None
@@ -197,9 +198,9 @@ def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers
 
 def _case_job(model, job):
     """Worker job: one case, or its error row (a failing case is recorded and the benchmark goes on)."""
-    case, nominal, noise_rad, workers, candidates, gains_first = job
+    case, nominal, noise_rad, workers, candidates, gains_first, progress = job
     try:
-        return run_case(model, case, nominal, noise_rad, workers, candidates, gains_first)
+        return run_case(model, case, nominal, noise_rad, workers, candidates, gains_first, progress)
     except Exception as err:  # noqa: BLE001
         return {**_error_row(case, f"{type(err).__name__}: {err}"), "traceback": traceback.format_exc(limit=3)}, None
 
@@ -271,7 +272,13 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
     noise = float(np.radians(noise_deg))
     pending = mixed([c for c in all_cases if c.name not in done or "error" in done[c.name]])
     in_parallel = bool(cluster) or len(pending) > 1  # the cases on the workers, else the one case's diagnosis
-    jobs = [(case, nominal, noise, 1 if in_parallel else workers, candidates, gains_first) for case in pending]
+    logs = {c.name: None if cluster else out / "cases" / c.name / "progress.log" for c in pending}  # a cluster's workers
+    #   may not see this folder
+    for log in filter(None, logs.values()):
+        log.unlink(missing_ok=True)  # a rerun case starts its log afresh
+    jobs = [(case, nominal, noise, 1 if in_parallel else workers, candidates, gains_first, logs[case.name]) for case in pending]
+    if progress and not cluster and pending:
+        progress(f"{len(pending)} case(s) to run; each one's steps: tail -f {out / 'cases' / 'CASE' / 'progress.log'}")
     with WorkerPool(model, workers if in_parallel else 1, cluster) as pool, _resumable():
         for finished, (i, result, error) in enumerate(pool.completed(_case_job, jobs), 1):
             case = pending[i]

@@ -40,6 +40,7 @@ from __future__ import annotations
 import dataclasses
 import time as _time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -77,9 +78,25 @@ class GapDiagnosis:
         return {k: v for k, v in dataclasses.asdict(self).items() if k not in ("series", "final_options")}
 
 
+def progress_lines(progress: bool | Path, stamp):
+    """Where a diagnosis says what it does: nowhere (False), stdout (True) or appended to the file `progress`
+    (a benchmark case's, to follow with `tail -f`); each line starts with `stamp()`."""
+    if not progress:
+        return None
+    if progress is True:
+        return lambda msg: print(f"{stamp()} {msg}", flush=True)
+    path = Path(progress)
+    path.parent.mkdir(parents=True, exist_ok=True)
+
+    def say(msg: str) -> None:
+        with path.open("a") as f:
+            f.write(f"{stamp()} {msg}\n")
+    return say
+
+
 def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: float | None = None, outputs=OUTPUT_NAMES,
                  candidates=None, threshold: float = 10.0, max_effects: int = 3, refine: int = 3, period: float = 20.0,
-                 fade: float = 2.0, workers: int = 2, gains_first: bool = False, progress: bool = False) -> GapDiagnosis:
+                 fade: float = 2.0, workers: int = 2, gains_first: bool = False, progress: bool | Path = False) -> GapDiagnosis:
     """Diagnose the gap between `model` (with `options`, e.g. fitted reflex gains) and `trials`.
 
     `noise` (rad, scalar or per output) is the measurement noise of the angles (estimated per
@@ -88,12 +105,11 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
     simulations. An effect is claimed when it lowers the held-out chi-square of the model
     without it by more than `threshold` after a k ln N penalty; at most `max_effects`. `gains_first`: the
     gains are widened beyond the identifiable directions (as far as each further direction passes) before
-    any effect is weighed (`search.Settings`).
+    any effect is weighed (`search.Settings`). `progress`: a line per step on stdout (True) or appended to a file.
     """
     wall = _time.perf_counter()
     count = {"simulations": 0}  # shared with the fitter: every progress line says how many simulations so far
-    say = (lambda msg: print(f"[{_time.perf_counter() - wall:6.1f} s, {count['simulations']:4d} sims] {msg}", flush=True)) \
-        if progress else None
+    say = progress_lines(progress, lambda: f"[{_time.perf_counter() - wall:6.1f} s, {count['simulations']:4d} sims]")
     options = options or TrunkOptions()
     candidates = tuple(effect(c) if isinstance(c, str) else c for c in (candidates or CATALOGUE))
     data = prepare_trials(trials, outputs, period, fade)
