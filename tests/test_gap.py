@@ -421,15 +421,19 @@ def test_the_polish_refits_every_gain_direction_and_drops_an_effect_the_gains_th
     search = _Search(space, SimpleNamespace(trials=[SimpleNamespace(steady_outputs=np.zeros((1000, 1)))]), fitter,
                      (effect("reflex_delay"), effect("upper_body_mass")), Settings(), np.eye(3)[:, 2:], None)
     final = Fit(("reflex_delay", "upper_body_mass"), np.array([0.1, 0.2, 0.05, 1.1]), 950.0, 1010.0, {})
-    fit, full = search.polish(final, space, steps.append)
-    assert full.rank == 3 and fitter.calls[0][2] == 3 and fitter.calls[0][3] == POLISH_ITERATIONS
+    fit, dropped = search.polish(final, space, steps.append)
+    assert search.space.rank == 3 and search.all_gains and fitter.calls[0][2] == 3 and fitter.calls[0][3] == POLISH_ITERATIONS
     np.testing.assert_array_equal(fitter.calls[0][1], [0.1, 0.2, 0.0, 0.05, 1.1])
     assert [s["action"] for s in steps] == ["polish", "drop", "keep"]
     assert steps[1]["effect"] == "reflex_delay" and steps[1]["own_delta_bic"]["reflex_delay"] == pytest.approx(5.0 - search.penalty)
-    assert fit.effects == ("upper_body_mass",) and fit.x.tolist() == [0.1, 0.2, 0.0, 1.1]
+    assert fit.effects == ("upper_body_mass",) and fit.x.tolist() == [0.1, 0.2, 0.0, 1.1] and dropped == {"reflex_delay"}
     assert steps[2]["own_delta_bic"] == {"upper_body_mass": pytest.approx(995.0 - search.penalty)}
-    worse = Fit(final.effects, final.x, 800.0, 1010.0, {})  # the polish fits the training halves worse: nothing changes
-    assert search.polish(worse, space, steps.append) == (worse, space)
+    # the polish fits the training halves worse: the same model (zero along the new direction), nothing dropped
+    search = _Search(space, search.screen, fitter, search.candidates.values(), Settings(), np.eye(3)[:, 2:], None)
+    worse = Fit(final.effects, final.x, 800.0, 1010.0, {})
+    fit, dropped = search.polish(worse, space, steps.append)
+    assert fit.x.tolist() == [0.1, 0.2, 0.0, 0.05, 1.1] and fit.train_chi2 == 800.0 and not dropped and len(steps) == 3
+    assert search.space.rank == 3 and search.models == {frozenset(worse.effects): fit}
 
 
 def test_after_the_polish_the_selection_goes_on_on_every_gain_direction():
@@ -458,8 +462,10 @@ def test_after_the_polish_the_selection_goes_on_on_every_gain_direction():
     search = _Search(SearchSpace(TrunkOptions(), layout, np.eye(2)), SimpleNamespace(trials=[SimpleNamespace(
         steady_outputs=np.zeros((1000, 1)))]), fitter, (effect("reflex_delay"), effect("upper_body_mass")), Settings(),
         np.zeros((2, 0)), None)
-    search.all_gains = True
     polished = Fit(("reflex_delay",), np.array([0.1, 0.2, 0.05]), 1300.0, 1400.0, {}, outputs=[])
+    assert search.added(polished, 4).tolist() == [0, 1, 3]  # screened with the chosen delay held ...
+    search.all_gains = True
+    assert search.added(polished, 4).tolist() == [0, 1, 2, 3]  # ... on all gain directions refitted too
     added = Fit(("reflex_delay", "upper_body_mass"), np.array([0.1, 0.2, 0.05, 1.1]), 950.0, 1050.0, {}, outputs=[])
     screened = []
     search.screen_additions = lambda current, names: screened.append(names) or [{"effect": n} for n in names]

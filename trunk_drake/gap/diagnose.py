@@ -151,7 +151,7 @@ def _report(data, noise, nominal, space: SearchSpace, found: SearchResult, left:
     variants = {"nominal": nominal, "refit": found.base.outputs}
     if found.selected:
         variants["effect"] = found.best.outputs
-    elif found.best is not found.base:  # no effect, but the gains widened: the gap removed is the final model's
+    elif found.best.outputs is not found.base.outputs:  # no effect, but the gains moved: the gap removed is the final model's
         variants["widened"] = found.best.outputs
     shrink = measure_shrinkage(data, variants, float(noise[0]))
     shrink["frf_error"] = frf_errors(data, variants)
