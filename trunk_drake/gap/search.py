@@ -21,8 +21,7 @@ with the narrower gains, and trade off against the wider ones): the final model 
 beyond the identifiable ones too. Then the polish (`_Search.polish`): the model refitted along every gain direction
 with its effects, each effect dropped again unless it earns its dBIC there. Last, the selection goes on from the
 polished model on every gain direction (`select` with `_Search.all_gains`): a further effect is claimed on its own dBIC
-(no gain direction is left to rival it), its linear screening with every coordinate free (the chosen effects too) and
-every refit in rounds like the polish. The remainder of the final model is tested.
+(no gain direction is left to rival it), every refit in rounds like the polish. The remainder of the final model is tested.
 
 With `Settings.gains_first` the gains are widened that way before any effect is weighed: every candidate is
 then screened, ranked and claimed on top of the widened gains, and the nested test alone decides (the gain
@@ -62,10 +61,6 @@ JOINT_ITERATIONS = 6
 POLISH_ITERATIONS = 3
 POLISH_ROUNDS = 4
 
-# Secant steps of the short refit of every checked candidate on all gain directions (`_Search.settle`): the identifiable
-# gain directions and every effect's parameters free, about 8 simulations a candidate.
-SETTLE_ITERATIONS = 2
-
 # Starts of an added effect across its range (fractions from its lower to its upper bound): the screening's, and with
 # gains first the refits' too (`_Search.starts`).
 START_FRACTIONS = (0.25, 0.75)
@@ -100,7 +95,6 @@ class _Search:
     def __init__(self, space: SearchSpace, screen: LinearScreen, fitter: TimeDomainFitter, candidates, settings: Settings,
                  spare: np.ndarray, progress):
         self.space, self.screen, self.fitter, self.settings, self.say = space, screen, fitter, settings, progress or (lambda m: None)
-        self.identifiable = space.rank  # the gain directions the data identify: the first of every wider space
         self.spare = spare  # the gain directions beyond the space's, most identifiable first
         self.rivals: dict = {}
         self.candidates = {e.name: e for e in candidates}
@@ -119,12 +113,7 @@ class _Search:
     def added(self, current: Fit, size: int) -> np.ndarray:
         """The coordinates an added effect is fitted on: its own parameters and the gain directions (the
         gains trade off against an effect: a delay against the velocity gains; held at the current fit they
-        can make the added effect look worse than it is), the effects already chosen held. On all gain
-        directions every coordinate, as in the refits there: a chosen effect stands in for part of a second
-        one (reflex_delay_delay0.04+slow_activation_scale2.5: slow activation alone polished to 2.81, truth
-        2.5), and with it held the second looks worse than it is."""
-        if self.all_gains:
-            return np.arange(size)
+        can make the added effect look worse than it is), the effects already chosen held."""
         return np.concatenate([np.arange(self.space.rank), np.arange(current.x.size, size)])
 
     def regain(self, current: Fit) -> Fit:
@@ -298,25 +287,6 @@ class _Search:
             self.say(f"checked {row['effect']}: dBIC {row['checked_delta_bic']:.1f} at {row['checked_values']}")
         return sorted(rows, key=lambda r: (-r.get("checked_delta_bic", -np.inf), -r["linear_delta_bic"]))
 
-    def settle(self, current: Fit, rows: list[dict]) -> list[dict]:
-        """On all gain directions: every checked row refitted briefly from its checked point (`SETTLE_ITERATIONS`
-        secant steps on the identifiable gain directions and every effect's parameters, the chosen effects' too),
-        and the rows re-sorted by that dBIC. A chosen effect stands in for part of a second one, and simulated with
-        the first held where it stood in the second looks worse than it is: on
-        reflex_delay_delay0.04+slow_activation_scale2.5 (slow activation alone polished to 2.81) the delay never
-        checked best, and stiffening discs, refined instead, stopped the search at dBIC -197."""
-        for row in [r for r in rows if "checked_delta_bic" in r]:
-            e = self.candidates[row["effect"]]
-            x = row["linear_fit"].x
-            free = np.concatenate([np.arange(self.identifiable), np.arange(self.space.rank, x.size)])
-            fit = self.fitter.fit(self.effects(current.effects) + (e,), x, free, max_iterations=SETTLE_ITERATIONS)
-            if fit.outputs is None:
-                continue
-            row["linear_fit"], row["settled_delta_bic"] = fit, self.dbic(current, fit, e)
-            self.say(f"settled {e.name}: dBIC {row['settled_delta_bic']:.1f} with {fit.values}")
-        return sorted(rows, key=lambda r: (-r.get("settled_delta_bic", -np.inf), -r.get("checked_delta_bic", -np.inf),
-                                           -r["linear_delta_bic"]))
-
     def starts(self, current: Fit, held, x: np.ndarray) -> list[np.ndarray]:
         """Where the refit of an added effect (the last of `held`) starts: the checked point x; with `gains_first`
         also `START_FRACTIONS` of the effect's range with `current`'s gains (the best refit on the training halves
@@ -332,12 +302,10 @@ class _Search:
 
     def refine(self, current: Fit, rows: list[dict]) -> dict[str, Fit]:
         """Nonlinear refits of the best `refine` screened rows after the check (the added effect's parameters and
-        the gains, from `starts`); on all gain directions of the best row after `settle` only (each row was simulated
-        at five points and refitted briefly there, and a refit in rounds costs 120-300 simulations)."""
+        the gains, from `starts`); on all gain directions of the best checked row only (each row was simulated at
+        five points there, and a refit in rounds costs 120-300 simulations)."""
         fits = {}
         rows[:] = self.check(current, rows)
-        if self.all_gains:
-            rows[:] = self.settle(current, rows)
         for row in [r for r in rows if "linear_fit" in r][:1 if self.all_gains else self.settings.refine]:
             lin = row.pop("linear_fit")
             e = self.candidates[row["effect"]]
