@@ -272,8 +272,8 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
     noise = float(np.radians(noise_deg))
     pending = mixed([c for c in all_cases if c.name not in done or "error" in done[c.name]])
     in_parallel = bool(cluster) or len(pending) > 1  # the cases on the workers, else the one case's diagnosis
-    logs = {c.name: None if cluster else out / "cases" / c.name / "progress.log" for c in pending}  # a cluster's workers
-    #   may not see this folder
+    # each case's steps in a file to follow (local workers only: a cluster's may not see this folder)
+    logs = {c.name: None if cluster else out / "cases" / c.name / "progress.log" for c in pending}
     for log in filter(None, logs.values()):
         log.unlink(missing_ok=True)  # a rerun case starts its log afresh
     jobs = [(case, nominal, noise, 1 if in_parallel else workers, candidates, gains_first, logs[case.name]) for case in pending]

@@ -283,7 +283,6 @@ class _Search:
             row["checked_values"] = self.space.values(points[best], effects[best])[-1]
             row["checked_delta_bic"] = self.dbic(current, dataclasses.replace(
                 row["linear_fit"], heldout_chi2=self.fitter.chi2(outputs[best], "test")), self.candidates[row["effect"]])
-        for row in checked:
             self.say(f"checked {row['effect']}: dBIC {row['checked_delta_bic']:.1f} at {row['checked_values']}")
         return sorted(rows, key=lambda r: (-r.get("checked_delta_bic", -np.inf), -r["linear_delta_bic"]))
 
