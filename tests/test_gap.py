@@ -476,6 +476,54 @@ def test_after_the_polish_the_selection_goes_on_on_every_gain_direction():
     assert [c[0] for c in fitter.calls[:2]] == [("reflex_delay", "upper_body_mass")] * 2  # the joint refit, 2 rounds
 
 
+def test_a_partner_masked_by_the_chosen_effect_is_refitted_with_it_from_its_own_first_step_fit():
+    """`_Search.partners`: each first-step single is added to the final model at its own fitted values and refitted
+    with it on every gain direction; the best is claimed on its dBIC against the final model's effects refitted from
+    the pair's gains without it (here better on the training halves than the final model), then the backward test."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.search import Settings, _Search
+    from trunk_drake.gap.space import Fit, SearchSpace
+    from trunk_drake.optim.gains import GainLayout
+
+    class Fitter:  # held-out chi2 by the effects fitted
+        def __init__(self, chi2):
+            self.chi2, self.calls = chi2, []
+
+        def fit(self, effects, x0, free, max_iterations=2, space=None):
+            names = tuple(e.name for e in effects)
+            self.calls.append((names, np.asarray(x0, float).tolist()))
+            return Fit(names, np.asarray(x0, float), self.chi2[names] - 100.0, self.chi2[names], {}, outputs=[])
+
+    layout = GainLayout(("kp.sacrospinalis", "kv.sacrospinalis"))
+    candidates = (effect("slow_activation"), effect("reflex_delay"), effect("upper_body_mass"))
+    screen = SimpleNamespace(trials=[SimpleNamespace(steady_outputs=np.zeros((1000, 1)))])
+    final = Fit(("slow_activation",), np.array([0.1, 0.2, 2.8]), 1300.0, 1400.0, {}, outputs=[])
+    singles = {"reflex_delay": SimpleNamespace(x=np.array([0.3, 0.4, 0.029])),
+               "upper_body_mass": SimpleNamespace(x=np.array([0.3, 0.4, 1.2]))}
+    chi2 = {("slow_activation", "reflex_delay"): 1000.0, ("slow_activation", "upper_body_mass"): 1395.0,
+            ("slow_activation",): 1380.0, ("reflex_delay",): 1500.0}
+    fitter, steps = Fitter(chi2), []
+    search = _Search(SearchSpace(TrunkOptions(), layout, np.eye(2)), screen, fitter, candidates, Settings(), np.zeros((2, 0)), None)
+    search.all_gains = True
+    model = search.partners(final, singles, steps.append)
+    assert model.effects == ("slow_activation", "reflex_delay")
+    assert fitter.calls[0] == (("slow_activation", "reflex_delay"), [0.1, 0.2, 2.8, 0.029])  # at the single's own fit
+    assert (("slow_activation", "upper_body_mass"), [0.1, 0.2, 2.8, 1.2]) in fitter.calls
+    assert [s["action"] for s in steps] == ["add", "keep"] and steps[0]["partner_of"] == ["slow_activation"]
+    assert steps[0]["delta_bic"] == pytest.approx(380.0 - search.penalty)  # against the refit without it (1380), not 1400
+    assert steps[0]["tried"]["upper_body_mass"] == pytest.approx(5.0 - search.penalty)
+    assert steps[1]["own_delta_bic"]["slow_activation"] == pytest.approx(500.0 - search.penalty)
+    # no partner passes against the refit without it: that refit is the model (better on the training halves)
+    fitter, steps = Fitter({**chi2, ("slow_activation", "reflex_delay"): 1375.0}), []
+    search = _Search(search.space, screen, fitter, candidates, Settings(), np.zeros((2, 0)), None)
+    search.all_gains = True
+    model = search.partners(final, singles, steps.append)
+    assert model.effects == ("slow_activation",) and model.heldout_chi2 == 1380.0
+    assert [s["action"] for s in steps] == ["partners"] and steps[0]["best"] == "reflex_delay"
+
+
 def test_a_diagnosis_says_its_steps_on_stdout_or_in_a_file(tmp_path, capsys):
     """`diagnose_gap(progress=...)`: nothing, stdout, or a file a benchmark case appends to (to follow with tail -f)."""
     from trunk_drake.gap.diagnose import progress_lines

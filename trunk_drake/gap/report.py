@@ -104,7 +104,9 @@ def _step(step: dict) -> str:
     if step["action"] == "add":
         values = _values(step["values"])
         against = _against_gains(step)
-        return (f"add **{step['effect']}**{on} (dBIC {step['delta_bic']:.1f}{'; ' + against if against else ''}); "
+        partner = (f"; a partner of {' + '.join(step['partner_of'])}, refitted with it from its own first-step fit"
+                   if step.get("partner_of") else "")
+        return (f"add **{step['effect']}**{on} (dBIC {step['delta_bic']:.1f}{'; ' + against if against else ''}{partner}); "
                 f"joint refit of {model}: {values}")
     if step["action"] == "gains":
         return (f"gains refitted along {step['directions']} directions (dBIC {step['delta_bic']:.1f}): mis-set gains beyond "
@@ -112,6 +114,9 @@ def _step(step: dict) -> str:
     if step["action"] == "polish":
         values = _values(step["values"])
         return f"polish: gains along all {step['directions']} directions refitted with the effects{': ' + values if values else ''}; model: {model}"
+    if step["action"] == "partners":
+        tried = ", ".join(f"{n} {v:.1f}" for n, v in step["tried"].items()) or "none refitted"
+        return f"partners{on}: each first-step effect refitted with the model (dBIC {tried}): none passes; model: {model}"
     if step["action"] in ("keep", "drop"):
         own = ", ".join(f"{n} {v:.1f}" for n, v in step["own_delta_bic"].items())
         return (f"drop **{step['effect']}**" if step["action"] == "drop" else "keep all") + f" (own dBIC{on}: {own}); model: {model}"
