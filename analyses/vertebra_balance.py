@@ -5,7 +5,7 @@ tolerated deflection change. Prints JSON: ``python analyses/vertebra_balance.py`
 import numpy as np
 
 import trunk_drake as td
-from trunk_drake.cli import print_json
+from trunk_drake.commands import print_json
 from trunk_drake.optim.static import StaticOptimizer, vertebra_balances
 from trunk_drake.optim.strength import StrengthProblem, load_case
 

@@ -90,3 +90,19 @@ def test_domain_modules_hold_no_command_line_code():
         if not name.startswith(COMMAND_LAYER):
             assert not [m for m in imported if m.startswith(COMMAND_LAYER)], f"{name} imports the command layer"
             assert "argparse" not in _modules()[name].read_text(), f"{name} parses arguments: that belongs in trunk_drake/commands"
+
+
+def test_every_script_imports_names_the_package_has():
+    """The analyses/ and benchmarks/ scripts run by hand, not in CI: each name they import from trunk_drake must
+    still exist (a rename in the package would otherwise break them unnoticed)."""
+    import importlib
+
+    missing = []
+    for folder in ("analyses", "benchmarks"):
+        for path in sorted((PACKAGE.parent / folder).glob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("trunk_drake"):
+                    module = importlib.import_module(node.module)
+                    missing += [f"{path.name}: {node.module}.{a.name}" for a in node.names if not hasattr(module, a.name)
+                                and not (hasattr(module, "__path__") and importlib.util.find_spec(f"{node.module}.{a.name}"))]
+    assert not missing, missing
