@@ -95,7 +95,7 @@ def test_domain_modules_hold_no_command_line_code():
 def test_every_script_imports_names_the_package_has():
     """The analyses/ and benchmarks/ scripts run by hand, not in CI: each name they import from trunk_drake must
     still exist (a rename in the package would otherwise break them unnoticed)."""
-    import importlib
+    import importlib.util
 
     missing = []
     for folder in ("analyses", "benchmarks"):
