@@ -4,8 +4,8 @@ alone), to tell the free refit's stop at 27.5 ms from the optimum.
 
     python analyses/gap_pair_profile.py DELAY_S [RUN_FOLDER]   # e.g. 0.04 docs/gap_benchmark/all_gains
 
-Prints each round and the result. 2026-12-04, 0.04: slow activation 2.53, training chi2 17,845 (the free refit:
-18,682 at 27.5 ms), held-out 18,081 (truth 18,056); 366 simulations (README, the partner test)."""
+Prints each round and the result. 2026-12-04, 0.04: slow activation 2.53, training chi2 17,856 (the free refit:
+18,682 at 27.5 ms), held-out 18,096 (truth 18,056); 369 simulations, 228 s (README, the partner test)."""
 
 import json
 import sys
