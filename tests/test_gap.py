@@ -536,3 +536,11 @@ def test_a_diagnosis_says_its_steps_on_stdout_or_in_a_file(tmp_path, capsys):
     say("refitted")
     say("added")
     assert log.read_text() == "[2 s] refitted\n[2 s] added\n"
+
+
+def test_an_effects_coordinates_invert_its_values():
+    """`Effect.coordinates` (physical values -> fitted coordinates, log10 where the catalogue says so) inverts
+    `Effect.values` for every candidate, at its start and at its bounds."""
+    for e in CATALOGUE:
+        for x in ([p.start for p in e.parameters], [p.lower for p in e.parameters], [p.upper for p in e.parameters]):
+            np.testing.assert_allclose(e.coordinates(e.values(x)), x, rtol=1e-12, atol=1e-12, err_msg=e.name)

@@ -27,6 +27,7 @@ from trunk_drake.gap.diagnose import diagnose_gap
 from trunk_drake.gap.measures import segment_chi2
 from trunk_drake.gap.refit import simulate_outputs
 from trunk_drake.gap.report import write_diagnosis
+from trunk_drake.gap.space import SearchSpace
 from trunk_drake.gap.synthetic import add_noise, clean_trials, signature_chi2
 from trunk_drake.gap.trials import half, prepare_trials
 from trunk_drake.io.trials import OUTPUT_NAMES
@@ -169,6 +170,23 @@ def case_trials(model, case: Case, nominal: TrunkOptions, noise_rad: float):
     if case.kind == "outside" and case.effects[0][0] == "kinematics_lag":
         clean = _lag_kinematics(clean, case.effects[0][1]["lag_s"])
     return designs, truth, clean, add_noise(clean, noise_rad, seed=case.seed)
+
+
+def published_case(name: str, folder) -> dict:
+    """A case of the benchmark run in `folder`, for checks offline (analyses/gap_*_check.py): its data regenerated at
+    the default noise ("model", "nominal", "truth" options, prepared "data", "noise" per output in rad), the run's "diagnosis"
+    (diagnosis.json), the "space" around the nominal gains with every gain direction, and the run's final model
+    there: "effects" and "x" (gain coordinates, then each effect's)."""
+    model, nominal = truth_configuration()
+    noise_rad = float(np.radians(DEFAULT_NOISE_DEG))
+    _, truth, _, noisy = case_trials(model, select_cases([name])[0], nominal, noise_rad)
+    diagnosis = json.loads((Path(folder) / "cases" / name / "diagnosis.json").read_text())
+    final, space = diagnosis["final"], SearchSpace.around(model, nominal)
+    effects = tuple(effect(n) for n in final["effects"])
+    gains = space.layout.vector(final["gains"]) - space.layout.vector(space.layout.fixed)
+    x = np.concatenate([gains] + [e.coordinates(final["effects"][e.name]) for e in effects])
+    return {"model": model, "nominal": nominal, "truth": truth, "data": prepare_trials(noisy, OUTPUT_NAMES),
+            "noise": np.full(len(OUTPUT_NAMES), noise_rad), "diagnosis": diagnosis, "space": space, "effects": effects, "x": x}
 
 
 def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers: int, candidates=None,

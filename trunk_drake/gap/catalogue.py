@@ -30,6 +30,10 @@ class Parameter:
     def value(self, x: float) -> float:
         return 10.0 ** x if self.log10 else x
 
+    def coordinate(self, value: float) -> float:
+        """The fitted coordinate of a physical value (the inverse of `value`)."""
+        return float(np.log10(value)) if self.log10 else value
+
 
 @dataclass(frozen=True)
 class Effect:
@@ -44,6 +48,10 @@ class Effect:
 
     def values(self, x) -> dict[str, float]:
         return {p.name: p.value(v) for p, v in zip(self.parameters, x)}
+
+    def coordinates(self, values: dict) -> list[float]:
+        """The fitted coordinates of physical `values` by parameter name (the inverse of `values`)."""
+        return [p.coordinate(values[p.name]) for p in self.parameters]
 
 
 def _replace(**fields) -> Callable[[TrunkOptions, dict], TrunkOptions]:

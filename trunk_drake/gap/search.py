@@ -379,16 +379,15 @@ class _Search:
         from the pair's gains without it (or `final`, the better on the training halves: the pair's refit runs further
         gain iterations too, which alone can gain about the threshold), and then every effect must earn its place
         (`backward`). Returns the model, `final` where no partner passes."""
-        threshold, pairs = self.settings.threshold, {}
+        threshold, pairs, tried = self.settings.threshold, {}, {}
         for name, single in singles.items():
             e = self.candidates[name]
             x0 = np.concatenate([final.x, single.x[single.x.size - len(e.parameters):]])
             fit = polish_fit(self.fitter, self.effects(final.effects) + (e,), x0, self.space, threshold)
             if fit.outputs is not None:
-                pairs[name] = fit
-                self.say(f"partner {name}: dBIC {self.dbic(final, fit, e):.1f} with {fit.values}")
-        best = max(pairs, key=lambda n: self.dbic(final, pairs[n], self.candidates[n]), default=None)
-        tried = {n: self.dbic(final, f, self.candidates[n]) for n, f in pairs.items()}
+                pairs[name], tried[name] = fit, self.dbic(final, fit, e)
+                self.say(f"partner {name}: dBIC {tried[name]:.1f} with {fit.values}")
+        best = max(tried, key=tried.get, default=None)
         if best is None or tried[best] <= threshold:
             record({"action": "partners", "model": list(final.effects), "tried": tried, **self.on_all_gains()})
             return final
@@ -450,15 +449,17 @@ class _Search:
         return self.backward(fit, record, floor=0)
 
 
-def polish_fit(fitter: TimeDomainFitter, effects, x0, space: SearchSpace, threshold: float) -> Fit:
-    """`effects` and every coordinate of `space` refitted from x0 in rounds of `POLISH_ITERATIONS` secant steps, each
-    from where the last stopped, while a round lowers the training chi2 by more than `threshold` (at most
-    `POLISH_ROUNDS`)."""
-    fit = fitter.fit(effects, x0, np.arange(x0.size), max_iterations=POLISH_ITERATIONS, space=space)
-    for _ in range(POLISH_ROUNDS - 1):
+def polish_fit(fitter: TimeDomainFitter, effects, x0, space: SearchSpace, threshold: float, free=None,
+               rounds: int = POLISH_ROUNDS) -> Fit:
+    """`effects` and every coordinate of `space` (or the coordinates `free`) refitted from x0 in rounds of
+    `POLISH_ITERATIONS` secant steps, each from where the last stopped, while a round lowers the training chi2 by more
+    than `threshold` (at most `rounds`)."""
+    free = np.arange(x0.size) if free is None else free
+    fit = fitter.fit(effects, x0, free, max_iterations=POLISH_ITERATIONS, space=space)
+    for _ in range(rounds - 1):
         if fit.outputs is None:
             break
-        again = fitter.fit(effects, fit.x, np.arange(x0.size), max_iterations=POLISH_ITERATIONS, space=space)
+        again = fitter.fit(effects, fit.x, free, max_iterations=POLISH_ITERATIONS, space=space)
         if again.outputs is None or again.train_chi2 >= fit.train_chi2:
             break
         fit, gained = again, fit.train_chi2 - again.train_chi2
