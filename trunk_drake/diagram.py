@@ -16,7 +16,9 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Adder, ConstantVectorSource, VectorLogSink
 
 from trunk_drake.model.anthropometry import with_upper_body_mass
+from trunk_drake.model.coupled import CoupledPlant
 from trunk_drake.model.levels import LEVELS
+from trunk_drake.model.tables import coordinate_table
 from trunk_drake.muscle.short_range import ShortRangeStiffness
 from trunk_drake.muscle.thelen import ThelenConstants
 from trunk_drake.systems.bushing import DEFAULT_DAMPING, DEFAULT_STIFFNESS, IntervertebralBushings
@@ -61,6 +63,7 @@ class TrunkOptions:
     srs: ShortRangeStiffness | None = None  # short-range stiffness of active muscle; None: off
     upper_body_mass_scale: float = 1.0  # scales the thorax body's mass and inertia (an upper-body mass error)
     constants: ThelenConstants = field(default_factory=ThelenConstants)
+    tables: bool = True  # one-coordinate models (the rhythm): paths and dynamics from tables (model.tables)
 
     def per_muscle(self, model, value) -> np.ndarray:
         if isinstance(value, dict):
@@ -156,7 +159,10 @@ def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str,
     nq, nv, n = plant.num_positions(), plant.num_velocities(), base.n_muscles
     fe = rotation_coordinates(base)
     builder.AddSystem(plant)
-    paths = builder.AddNamedSystem("muscle_paths", MusclePathSystem(base))
+    table = coordinate_table(base) if opts.tables else None
+    if table is not None and isinstance(plant, CoupledPlant):  # a MultibodyPlant computes its dynamics in C++
+        plant.use_table(table)
+    paths = builder.AddNamedSystem("muscle_paths", MusclePathSystem(base, table))
     params = muscle_parameters(base, opts.strength_scale)
     constants = opts.constants
     if opts.activation_scale != 1.0:
@@ -209,7 +215,7 @@ def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str,
     pert = None
     if pelvis_mode == "prescribed":
         direction = _anterior_direction(base)
-        pert = builder.AddNamedSystem("perturbation", PrescribedPelvisMotion(base, perturbation, direction))
+        pert = builder.AddNamedSystem("perturbation", PrescribedPelvisMotion(base, perturbation, direction, table))
         builder.Connect(plant.get_state_output_port(), pert.GetInputPort("plant_state"))
         forces.append(pert.GetOutputPort("generalized_force"))
     elif pelvis_mode == "force":

@@ -50,6 +50,7 @@ class CoupledPlant(LeafSystem):
         self._synced = None  # the state last written into the scratch context
         self._free_motion = None  # (state, M^-1, M^-1 (tau_g - C)) at the last state: implicit integrators
         #                         perturb the other systems' states many times at one plant state
+        self._table = None  # a CoordinateTable (one coordinate): M, g and c from it inside its grid
         self.DeclareContinuousState(self._n, self._n, 0)
         self._applied = self.DeclareVectorInputPort("applied_generalized_force", self._n)
         self._state = self.DeclareVectorOutputPort("state", 2 * self._n, weak(self._copy_state),
@@ -112,6 +113,12 @@ class CoupledPlant(LeafSystem):
             self._synced = x
         return self._scratch
 
+    def use_table(self, table) -> None:
+        """Take M, gravity and the bias term from `table` (a `model.tables.CoordinateTable` of this plant) where
+        it covers q; None: always from the full plant."""
+        self._table = table
+        self._free_motion = None
+
     # ---- dynamics in the coupled coordinates ------------------------------------------
     def CalcMassMatrix(self, context) -> np.ndarray:
         return self._mass(self.full_context(context))
@@ -136,6 +143,13 @@ class CoupledPlant(LeafSystem):
 
     def DoCalcTimeDerivatives(self, context, derivatives):
         x = self._state_vector(context).CopyToVector()
+        table = self._table
+        if table is not None and table.covers(x[0]):
+            mass, gravity, bias = table.dynamics(x[0])
+            applied = self._applied.Eval(context)[0] if self._applied.HasValue(context) else 0.0
+            vdot = (gravity - bias * x[1] ** 2 + applied) / mass
+            derivatives.get_mutable_vector().SetFromVector([x[1], vdot])
+            return
         if self._free_motion is None or not np.array_equal(x, self._free_motion[0]):
             scratch = self._scratch_at(x)  # the state read once, for all three terms
             mass = self._mass(scratch)

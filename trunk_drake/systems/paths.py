@@ -17,11 +17,12 @@ class MusclePathSystem(LeafSystem):
     The path kinematics (compiled body kinematics and paths, `TrunkModel.path_state_from_q`)
     are computed once per plant state and kept in the Context (a memo entry: implicit
     integrators perturb muscle states with the plant state unchanged), and shared by every consumer.
+    With a `table` (`model.tables.CoordinateTable`, one coordinate) they come from it inside its grid.
     """
 
-    def __init__(self, model):
+    def __init__(self, model, table=None):
         super().__init__()
-        self._model = model
+        self._model, self._table = model, table
         self._nq = model.plant.num_positions()
         self._state = self.DeclareVectorInputPort("plant_state", self._nq + model.plant.num_velocities())
         self._memo = declare_memo(self, "path kinematics", self._eval_state, self._compute, {self._state.ticket()})
@@ -38,4 +39,6 @@ class MusclePathSystem(LeafSystem):
     def _compute(self, context, x) -> PathState:
         if not np.isfinite(x.sum()):  # any NaN or inf; Drake would abort on non-finite positions
             raise RuntimeError(f"non-finite plant state at t={context.get_time():.6g} s: {x}")
+        if self._table is not None and self._table.covers(x[0]):
+            return self._table.paths(x[0], x[1])
         return self._model.path_state_from_q(x[: self._nq], x[self._nq:])

@@ -14,12 +14,12 @@ class PrescribedPelvisMotion(LeafSystem):
 
     Their sum is the generalized force ``-a(t) M J_com^T d`` (M total mass, J_com the
     centre-of-mass Jacobian, d the world direction of motion; compiled, from the model's body
-    kinematics). Input ``plant_state``; output ``generalized_force``.
+    kinematics, or a `table`'s for one coordinate). Input ``plant_state``; output ``generalized_force``.
     """
 
-    def __init__(self, model, signal, direction):
+    def __init__(self, model, signal, direction, table=None):
         super().__init__()
-        self._model, self._signal = model, signal
+        self._model, self._signal, self._table = model, signal, table
         self._dir = np.asarray(direction, dtype=float)
         self._nq, nv = model.plant.num_positions(), model.plant.num_velocities()
         self._state = self.DeclareVectorInputPort("plant_state", self._nq + nv)
@@ -30,7 +30,10 @@ class PrescribedPelvisMotion(LeafSystem):
         if not np.isfinite(q.sum()):  # any NaN or inf
             raise RuntimeError(f"non-finite pelvis-frame positions at t={context.get_time():.6g} s: {q}")
         acceleration = self._signal.evaluate(context.get_time())[2]
-        output.SetFromVector(-acceleration * self._model.mass_weighted_com_jacobian(q, self._dir))
+        table = self._table
+        load = table.com_load(q[0], self._dir) if table is not None and table.covers(q[0]) else \
+            self._model.mass_weighted_com_jacobian(q, self._dir)
+        output.SetFromVector(-acceleration * load)
 
 
 class PelvisForcePerturbation(LeafSystem):

@@ -1,0 +1,121 @@
+"""Tables of a one-coordinate model's posture-dependent terms, for the diagram's per-step evaluations.
+
+With one coordinate q (the lumbar rhythm on a welded pelvis, the default passenger) every term the
+equations of motion need at a posture is a function of one number: each muscle's length L(q) and moment
+arm -dL/dq, the generalized mass M(q), the gravity force g(q), the velocity-product term c(q) v^2 (one
+coordinate: c = M'/2) and the inertial load of a unit platform acceleration (``M J_com^T``, per world
+axis). A `CoordinateTable` holds them as piecewise cubics on a uniform grid, so a step's evaluations
+cost a few vector operations instead of the body kinematics, 210 paths and three multibody calls:
+
+* lengths by cubic Hermite interpolation with the exact moment arms as slopes; the moment arm is the
+  interpolant's own derivative, so muscle work stays the derivative of length (no energy leak);
+* the rigid-body terms by not-a-knot cubic splines of their exact values.
+
+OpenSim 4.5's FunctionBasedPath does the same for muscle paths (fitted polynomials of the coordinates).
+The grid spans the coordinate's range (where the geometry was verified). A wrapping surface that a path
+starts or stops touching gives the exact moment arm a jump, which no cubic follows: an interval whose
+midpoint misses the exact lengths or moment arms by more than TOLERANCE is left out of the table. Outside
+the table (out of range, or such an interval) the callers use the exact computation. `tests/test_tables.py` bounds the table's error
+against the exact kernel; `tests/test_accuracy.py` checks the trials against the stored accurate reference.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import pickle
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import CubicHermiteSpline, CubicSpline
+
+from trunk_drake.model.paths import PathState
+
+STEP = np.radians(0.125)  # grid spacing (rad)
+TOLERANCE = {"length": 1e-8, "moment_arm": 1e-6}  # m: an interval's largest error at its midpoint, else left out
+_CACHE: dict = {}  # (hash of the spec, load options) -> table: built once per process and model
+
+
+@dataclass(frozen=True)
+class CoordinateTable:
+    """Piecewise cubics in q on ``lo + step * k``: `coefficients` (4, intervals, columns), highest power first,
+    columns = lengths of the n muscles, then M, g, c and the three axes of ``M J_com^T``."""
+
+    lo: float
+    step: float
+    coefficients: np.ndarray
+    slopes: np.ndarray  # (3, intervals, n): derivative coefficients of the length columns
+    n_muscles: int
+    exact: np.ndarray  # (intervals,) bool: intervals left out (a moment-arm jump inside)
+
+    @property
+    def hi(self) -> float:
+        return self.lo + self.step * self.coefficients.shape[1]
+
+    def covers(self, q: float) -> bool:
+        return self.lo <= q <= self.lo + self.step * self.coefficients.shape[1] and not self.exact[self._locate(q)[0]]
+
+    def _locate(self, q: float) -> tuple[int, float]:
+        k = min(int((q - self.lo) / self.step), self.coefficients.shape[1] - 1)
+        return k, q - (self.lo + k * self.step)
+
+    def _values(self, k: int, t: float, columns: slice) -> np.ndarray:
+        c = self.coefficients[:, k, columns]
+        return ((c[0] * t + c[1]) * t + c[2]) * t + c[3]
+
+    def paths(self, q: float, v: float | None = None) -> PathState:
+        """Lengths, moment arms (n, 1) and, with v, lengthening velocities at q (inside the grid)."""
+        k, t = self._locate(q)
+        n = self.n_muscles
+        lengths = self._values(k, t, slice(0, n))
+        s = self.slopes[:, k]
+        slope = (s[0] * t + s[1]) * t + s[2]
+        return PathState(lengths=lengths, moment_arms=-slope[:, None], velocities=None if v is None else slope * v)
+
+    def dynamics(self, q: float) -> tuple[float, float, float]:
+        """M(q), g(q) and c(q): the equation of motion is M v' + c v^2 = g + tau."""
+        k, t = self._locate(q)
+        m, g, c = self._values(k, t, slice(self.n_muscles, self.n_muscles + 3))
+        return m, g, c
+
+    def com_load(self, q: float, direction) -> np.ndarray:
+        """``M J_com^T d`` at q, shape (1,) (`TrunkModel.mass_weighted_com_jacobian`)."""
+        k, t = self._locate(q)
+        return np.array([self._values(k, t, slice(self.n_muscles + 3, None)) @ direction])
+
+
+def coordinate_table(model) -> CoordinateTable | None:
+    """The table of `model` (built once per spec and configuration), or None where it has none: more than
+    one coordinate, or paths without compiled kinematics (OpenSim files)."""
+    if model.plant.num_positions() != 1 or model._kinematics is None:
+        return None
+    key = (hashlib.sha256(pickle.dumps(model.spec)).hexdigest(), *model.load_options.values())
+    if key not in _CACHE:
+        if len(_CACHE) >= 8:
+            _CACHE.pop(next(iter(_CACHE)))
+        _CACHE[key] = _build(model)
+    return _CACHE[key]
+
+
+def _build(model) -> CoordinateTable:
+    lo, hi = model.coordinate_info[0].range
+    q = lo + STEP * np.arange(int(np.ceil((hi - lo) / STEP)) + 1)
+    lengths, slopes, rigid = [], [], []
+    plant, context = model.plant, model.plant.CreateDefaultContext()
+    for value in q:
+        state = model.path_state_from_q(np.array([value]))
+        lengths.append(state.lengths)
+        slopes.append(-state.moment_arms[:, 0])
+        plant.SetPositionsAndVelocities(context, [value, 1.0])  # at v = 1 the bias term is c
+        load = [model.mass_weighted_com_jacobian(np.array([value]), axis)[0] for axis in np.eye(3)]
+        rigid.append([plant.CalcMassMatrix(context)[0, 0], plant.CalcGravityGeneralizedForces(context)[0],
+                      plant.CalcBiasTerm(context)[0], *load])
+    hermite = CubicHermiteSpline(q, np.array(lengths), np.array(slopes))
+    spline = CubicSpline(q, np.array(rigid))
+    coefficients = np.concatenate([hermite.c, spline.c], axis=2)
+    table = CoordinateTable(float(q[0]), STEP, np.ascontiguousarray(coefficients),
+                            np.ascontiguousarray(hermite.derivative().c), model.n_muscles, np.zeros(q.size - 1, bool))
+    for k, middle in enumerate(q[:-1] + STEP / 2):
+        exact, approximate = model.path_state_from_q(np.array([middle])), table.paths(middle)
+        table.exact[k] = (np.abs(approximate.lengths - exact.lengths).max() > TOLERANCE["length"]
+                          or np.abs(approximate.moment_arms - exact.moment_arms).max() > TOLERANCE["moment_arm"])
+    return table
