@@ -118,3 +118,14 @@ def test_settling_target_and_bad_input(setting):
         fit_reflex_gains(model, [], options=options, workers=1)
     with pytest.raises(ValueError, match="output 'T1_FE'"):
         targets_from_trials(load_experiment([REFERENCE / "trial_1hz_a.csv"]).trials, ("T1_FE",))
+
+
+def test_a_jacobians_points_run_as_groups_per_target_and_a_points_own_run_alone():
+    from trunk_drake.optim.fit import point_jobs
+
+    points, steps = list(range(14)), np.linspace(0.0, 1.0, 5)
+    assert point_jobs(points, 2, [None, None], workers=2) == [([i], k) for i in range(14) for k in range(2)]
+    plan = point_jobs(points, 2, [steps, steps], workers=2)
+    assert sorted(k for _, k in plan) == [0, 1] and all(g == points for g, _ in plan)
+    plan = point_jobs(points, 1, [steps], workers=2)
+    assert [len(g) for g, _ in plan] == [7, 7] and sorted(i for g, _ in plan for i in g) == points

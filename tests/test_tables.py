@@ -1,4 +1,5 @@
-"""The one-coordinate tables (trunk_drake.model.tables) against the exact computation they replace."""
+"""The one-coordinate tables (trunk_drake.model.tables) against the exact computation they replace, and copies of the
+model in one diagram (simulation.simulate_gain_sets) against their own simulations."""
 
 import dataclasses
 
@@ -6,9 +7,10 @@ import numpy as np
 import pytest
 
 import trunk_drake as td
-from trunk_drake.diagram import TrunkOptions
+from trunk_drake.diagram import CopiesUnsupported, TrunkOptions
 from trunk_drake.model.tables import TOLERANCE, coordinate_table
-from trunk_drake.simulation import simulate
+from trunk_drake.signals import make_multisine
+from trunk_drake.simulation import simulate, simulate_gain_sets
 
 
 @pytest.fixture(scope="module")
@@ -51,3 +53,26 @@ def test_a_simulation_with_tables_follows_the_exact_one_on_its_steps(rhythm):
     tabulated = simulate(rhythm, duration=3.0, bandwidth=2.0, options=options, log=(), steps=exact.step_times)
     assert np.degrees(np.ptp(exact.lumbar_rotation)) > 0.5, "the trial must move the trunk"
     assert np.abs(np.degrees(tabulated.lumbar_rotation - exact.lumbar_rotation)).max() < 1e-6
+
+
+def test_copies_of_the_model_in_one_diagram_give_each_copys_own_simulation(rhythm):
+    """simulate_gain_sets: every copy equals its own simulate on the same step sequence (to round-off)."""
+    options = TrunkOptions(reflex_delay=0.02, stiffness=150.0, feedforward=np.full(rhythm.n_muscles, 0.03))
+    sets = [{"kp": 0.5, "kv": 0.3}, {"kp": {"sacrospinalis": 2.0}, "kv": 0.1}, {"kp": 0.0, "kv": 1.0}]
+    own = simulate(rhythm, duration=2.0, bandwidth=2.0, options=options, log=(), **sets[0])
+    copies = simulate_gain_sets(rhythm, sets, own.step_times, duration=2.0, perturbation=make_multisine(f_max=2.0, seed=0, fade_shape="quintic"),
+                                options=options, log=("normalized_fiber_length",))
+    for gains, copy in zip(sets, copies):
+        alone = simulate(rhythm, duration=2.0, bandwidth=2.0, options=options, steps=own.step_times,
+                         log=("normalized_fiber_length",), **gains)
+        assert np.abs(copy.lumbar_rotation - alone.lumbar_rotation).max() < 1e-12
+        assert np.abs(copy.normalized_fiber_length - alone.normalized_fiber_length).max() < 1e-10
+    assert np.degrees(np.abs(copies[0].lumbar_rotation - copies[2].lumbar_rotation).max()) > 0.01, "the gains must matter"
+
+
+def test_copies_need_a_model_and_options_they_support(rhythm):
+    steps = np.linspace(0.0, 1.0, 11)
+    with pytest.raises(CopiesUnsupported, match="rigid tendons"):
+        simulate_gain_sets(rhythm, [{"kp": 0.1, "kv": 0.1}] * 2, steps, duration=1.0, options=TrunkOptions(tendon="compliant"))
+    with pytest.raises(CopiesUnsupported, match="one coordinate"):
+        simulate_gain_sets(td.load_model("sagittal"), [{"kp": 0.1, "kv": 0.1}] * 2, steps, duration=1.0)

@@ -8,6 +8,7 @@ feed-forward co-activation, intervertebral bushings and the pelvis perturbation.
 
 from __future__ import annotations
 
+import dataclasses
 import gc
 from dataclasses import dataclass, field, replace
 
@@ -26,6 +27,7 @@ from trunk_drake.systems.delay import TransportDelay
 from trunk_drake.systems.muscles import MuscleSystem, muscle_parameters
 from trunk_drake.systems.paths import MusclePathSystem
 from trunk_drake.systems.perturbation import PelvisForcePerturbation, PrescribedPelvisMotion
+from trunk_drake.systems.tabulated_plant import TabulatedPlant
 from trunk_drake.systems.effects import GolgiTendonFeedback, SeatCompliance, TrunkInSpaceFeedback
 from trunk_drake.systems.reflex import ExcitationMixer, StretchReflex, gains_by_group
 
@@ -87,6 +89,12 @@ class TrunkDiagram:
     loggers: dict[str, VectorLogSink]
     fe_indices: np.ndarray  # indices of the lumbar flexion-extension coordinates in q
     feedforward: np.ndarray  # the constant feed-forward excitation
+    copies: int = 1  # copies of the model (`gain_sets`): q holds copy b's coordinates at b * nq ... (b + 1) * nq - 1
+
+    def names(self, kind: str) -> list[str]:
+        """The diagram's "coordinates" or "muscles" in order, each copy's marked (``name[b]``) where there are copies."""
+        names = list(getattr(self.model, kind))
+        return names if self.copies == 1 else [f"{name}[{b}]" for b in range(self.copies) for name in names]
 
 
 def _desired_length(model, opts: TrunkOptions, params) -> np.ndarray:
@@ -124,11 +132,15 @@ def plant_model_for(model, pelvis: str):
 
 
 def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation=None, log_period: float = 0.0,
-                        log: tuple[str, ...] = MUSCLE_LOGS) -> TrunkDiagram:
+                        log: tuple[str, ...] = MUSCLE_LOGS, gain_sets: list[dict] | None = None) -> TrunkDiagram:
     """Build the diagram for `model` (sagittal or rhythm). `perturbation` is a platform signal with
     `evaluate(t) -> (x, v, a)` (e.g. `trunk_drake.signals.make_multisine(...)`), or None.
     Loggers record the plant state and the muscle histories `log` (of MUSCLE_LOGS) at every integrator
-    step (``log_period=0``) or at a fixed period; fits log only what they use (each log is evaluated every step)."""
+    step (``log_period=0``) or at a fixed period; fits log only what they use (each log is evaluated every step).
+    `gain_sets` (a list of {"kp": ..., "kv": ...}, each as `TrunkOptions.kp`): one copy of the model per set, all
+    in one diagram on one integrator (a TabulatedPlant: the rhythm on the prescribed pelvis, rigid tendons, the
+    stretch reflex as the only feedback), so that a finite-difference Jacobian's points share each evaluation's
+    fixed cost; the copies differ only in their gains."""
     unknown = set(log) - set(MUSCLE_LOGS)
     if unknown:
         raise ValueError(f"unknown muscle logs {sorted(unknown)}; choose from {MUSCLE_LOGS}")
@@ -146,24 +158,25 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
         base = plant_model_for(model, "prescribed")
     builder = DiagramBuilder()
     try:
-        return _assemble(builder, base, opts, perturbation, pelvis_mode, log_period, log)
+        return _assemble(builder, base, opts, perturbation, pelvis_mode, log_period, log, gain_sets)
     except BaseException:  # bad input found mid-build: free what was added (nested diagrams too)
         release(builder)
         raise
 
 
 def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str, log_period: float,
-              log: tuple[str, ...]) -> TrunkDiagram:
+              log: tuple[str, ...], gain_sets: list[dict] | None) -> TrunkDiagram:
     """The systems of `build_trunk_diagram`, added to `builder` and connected; the built diagram."""
-    plant = base.plant
-    nq, nv, n = plant.num_positions(), plant.num_velocities(), base.n_muscles
-    fe = rotation_coordinates(base)
-    builder.AddSystem(plant)
     table = coordinate_table(base) if opts.tables else None
+    copies = _copies(base, opts, pelvis_mode, table, gain_sets)
+    plant = base.plant if copies == 1 else TabulatedPlant(table, copies)
+    nq, nv, n = plant.num_positions(), plant.num_velocities(), base.n_muscles * copies
+    fe = (rotation_coordinates(base)[None, :] + base.plant.num_positions() * np.arange(copies)[:, None]).reshape(-1)
+    builder.AddSystem(plant)
     if table is not None and isinstance(plant, CoupledPlant):  # a MultibodyPlant computes its dynamics in C++
         plant.use_table(table)
-    paths = builder.AddNamedSystem("muscle_paths", MusclePathSystem(base, table))
-    params = muscle_parameters(base, opts.strength_scale)
+    paths = builder.AddNamedSystem("muscle_paths", MusclePathSystem(base, table, copies))
+    params = _tiled(muscle_parameters(base, opts.strength_scale), copies)
     constants = opts.constants
     if opts.activation_scale != 1.0:
         if not opts.activation_scale > 0:
@@ -171,14 +184,16 @@ def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str,
         constants = replace(constants, activation_time_constant=constants.activation_time_constant * opts.activation_scale,
                             deactivation_time_constant=constants.deactivation_time_constant * opts.activation_scale)
     muscles = builder.AddNamedSystem("muscles", MuscleSystem(base, constants, opts.tendon, params, mask=opts.muscle_mask,
-                                                                srs=opts.srs))
-    reflex = builder.AddNamedSystem(
-        "stretch_reflex", StretchReflex(n, opts.per_muscle(base, opts.kp), opts.per_muscle(base, opts.kv), _desired_length(base, opts, params))
-    )
-    feedforward = opts.feedforward if opts.feedforward is not None else np.full(n, opts.constants.minimum_activation)
+                                                                srs=opts.srs, copies=copies))
+    gains = gain_sets or [{"kp": opts.kp, "kv": opts.kv}]
+    reflex = builder.AddNamedSystem("stretch_reflex", StretchReflex(
+        n, np.concatenate([opts.per_muscle(base, g["kp"]) for g in gains]), np.concatenate([opts.per_muscle(base, g["kv"]) for g in gains]),
+        np.tile(_desired_length(base, opts, muscle_parameters(base, opts.strength_scale)), copies)))
+    feedforward = opts.feedforward if opts.feedforward is not None else np.full(base.n_muscles, opts.constants.minimum_activation)
     feedforward = np.asarray(feedforward, dtype=float)
-    if feedforward.shape != (n,):
-        raise ValueError(f"feedforward excitation must have {n} entries (one per muscle), got shape {feedforward.shape}")
+    if feedforward.shape != (base.n_muscles,):
+        raise ValueError(f"feedforward excitation must have {base.n_muscles} entries (one per muscle), got shape {feedforward.shape}")
+    feedforward = np.tile(feedforward, copies)
     ff = builder.AddNamedSystem("feedforward", ConstantVectorSource(feedforward))
     feedback = [reflex.GetOutputPort("feedback")]
     if opts.gto_gain:
@@ -197,9 +212,10 @@ def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str,
             port = delay.get_output_port(0)
         feedback.append(port)
     mixer = builder.AddNamedSystem("excitation", ExcitationMixer(n, len(feedback), opts.constants.minimum_activation))
-    bushings = builder.AddNamedSystem(
-        "bushings", IntervertebralBushings(nq, nv, base.level_matrix, opts.stiffness, opts.damping, cubic=opts.cubic)
-    )
+    levels = len(base.level_matrix)
+    bushings = builder.AddNamedSystem("bushings", IntervertebralBushings(
+        nq, nv, np.kron(np.eye(copies), base.level_matrix), *(np.tile(np.broadcast_to(np.asarray(value, float), (levels,)), copies)
+                                                              for value in (opts.stiffness, opts.damping)), cubic=opts.cubic))
 
     builder.Connect(plant.get_state_output_port(), paths.get_input_port())
     builder.Connect(plant.get_state_output_port(), bushings.get_input_port(0))
@@ -215,7 +231,7 @@ def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str,
     pert = None
     if pelvis_mode == "prescribed":
         direction = _anterior_direction(base)
-        pert = builder.AddNamedSystem("perturbation", PrescribedPelvisMotion(base, perturbation, direction, table))
+        pert = builder.AddNamedSystem("perturbation", PrescribedPelvisMotion(base, perturbation, direction, table, copies))
         builder.Connect(plant.get_state_output_port(), pert.GetInputPort("plant_state"))
         forces.append(pert.GetOutputPort("generalized_force"))
     elif pelvis_mode == "force":
@@ -247,7 +263,32 @@ def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str,
         log_port(name, mixer.GetOutputPort(name) if name == "excitation" else muscles.GetOutputPort(name))
     diagram = builder.Build()
     diagram.set_name("trunk")
-    return TrunkDiagram(diagram, base, opts, plant, paths, muscles, reflex, bushings, pert, loggers, fe, feedforward)
+    return TrunkDiagram(diagram, base, opts, plant, paths, muscles, reflex, bushings, pert, loggers, fe, feedforward, copies)
+
+
+class CopiesUnsupported(ValueError):
+    """This diagram cannot hold copies of its model (`build_trunk_diagram`'s `gain_sets`): simulate one by one."""
+
+
+def _copies(base, opts: TrunkOptions, pelvis_mode: str, table, gain_sets) -> int:
+    """The number of model copies `gain_sets` asks for, checked against what copies support."""
+    if gain_sets is None:
+        return 1
+    if not gain_sets:
+        raise ValueError("gain_sets is empty: give at least one {'kp': ..., 'kv': ...}")
+    unsupported = [what for what, bad in [
+        ("a model with one coordinate (the rhythm on the prescribed pelvis) and its table (TrunkOptions.tables)", table is None),
+        ("the prescribed pelvis or none", pelvis_mode not in ("prescribed", "none")), ("rigid tendons", opts.tendon != "rigid"),
+        ("no Golgi tendon or trunk-in-space feedback", bool(opts.gto_gain or opts.vestibular_gain)),
+        ("no muscle mask and no short-range stiffness", opts.muscle_mask is not None or opts.srs is not None)] if bad]
+    if unsupported:
+        raise CopiesUnsupported(f"copies of the model (gain_sets) need {'; '.join(unsupported)}; simulate the sets one by one")
+    return len(gain_sets)
+
+
+def _tiled(params, copies: int):
+    """Muscle parameters repeated for `copies` copies of the model."""
+    return type(params)(**{k: np.tile(v, copies) for k, v in dataclasses.asdict(params).items()})
 
 
 def release(diagram: Diagram | DiagramBuilder) -> None:

@@ -171,7 +171,7 @@ class SimulationResult:
 
 def _monitor(td: TrunkDiagram):
     """Stop a diverging run with a message naming time, coordinates and muscles."""
-    plant, names = td.plant, td.model.coordinates
+    plant, names = td.plant, td.names("coordinates")
     nq = plant.num_positions()
 
     def monitor(root_context):
@@ -195,7 +195,7 @@ def divergence_message(td: TrunkDiagram, root_context, q, v, names) -> str:
     try:
         vn = td.muscles.GetOutputPort("normalized_fiber_velocity").Eval(muscles_ctx)
         worst = np.argsort(-np.nan_to_num(np.abs(vn), nan=np.inf))[:5]
-        fibers = ", ".join(f"{td.model.muscles[i]} (v/vmax={vn[i]:.3g}, a={a[i]:.3g})" for i in worst)
+        fibers = ", ".join(f"{td.names('muscles')[i]} (v/vmax={vn[i]:.3g}, a={a[i]:.3g})" for i in worst)
     except Exception as err:  # the state may be too broken to evaluate fibers
         fibers = f"(fiber states not computable: {err})"
     return (
@@ -254,6 +254,25 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
     result's others are None), fewer for the fits' many runs. Other keyword arguments override fields of
     `TrunkOptions` (e.g. ``kp=0.2, tendon="compliant"``).
     """
+    return _simulate(model, None, duration, perturbation, bandwidth, seed, lowpass_hz, options, integrator, accuracy, log_rate,
+                     max_step, progress, steps, log, option_overrides)[0]
+
+
+def simulate_gain_sets(model, gain_sets: list[dict], steps: np.ndarray, duration: float | None = None, perturbation="multisine",
+                       options: TrunkOptions | None = None, log_rate: float = DEFAULT_LOG_RATE,
+                       log: tuple[str, ...] = MUSCLE_LOGS) -> list[SimulationResult]:
+    """`simulate` once per reflex-gain set of `gain_sets` ({"kp": ..., "kv": ...}, each as `TrunkOptions.kp`), all on
+    the replayed step sequence `steps`, as copies of the model in one diagram (`build_trunk_diagram`'s `gain_sets`:
+    the rhythm on the prescribed pelvis, rigid tendons, no other feedback). Each result equals its own `simulate` on
+    `steps` to round-off, at a fraction of the cost: the copies share every evaluation's fixed cost (the points of a
+    finite-difference Jacobian). A copy that diverges or leaves the tabulated range fails them all (SimulationError)."""
+    return _simulate(model, list(gain_sets), duration, perturbation, 1.0, 0, None, options, None, None, log_rate, None, False,
+                     steps, log, {})
+
+
+def _simulate(model, gain_sets, duration, perturbation, bandwidth, seed, lowpass_hz, options, integrator, accuracy, log_rate,
+              max_step, progress, steps, log, option_overrides) -> list[SimulationResult]:
+    """`simulate` (`gain_sets` None: one result) or `simulate_gain_sets` (one result per set)."""
     opts = dataclasses.replace(options or TrunkOptions(), **option_overrides)
     integrator = integrator or default_integrator(model, opts)
     nonstiff = integrator == NONSTIFF_INTEGRATOR
@@ -274,7 +293,9 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
     elif max_step is None:
         delays = [max(d, MIN_DELAY_STEP) for d in (opts.reflex_delay, opts.vestibular_delay) if d > 0]
         max_step = min(NONSTIFF_MAX_STEP if nonstiff else MAX_STEP, 0.1 / bandwidth, *delays)
-    td = build_trunk_diagram(model, opts, signal, log=tuple(log))
+    if gain_sets is not None and steps is None:
+        raise ValueError("simulate_gain_sets replays a step sequence: give `steps` (a previous run's step_times)")
+    td = build_trunk_diagram(model, opts, signal, log=tuple(log), gain_sets=gain_sets)
     simulator = Simulator(td.diagram)
     ResetIntegratorFromFlags(simulator, integrator, max_step)
     integ = simulator.get_mutable_integrator()
@@ -289,7 +310,8 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
         wall = _time.perf_counter()
         _run(simulator, duration, steps, progress)
         wall = _time.perf_counter() - wall
-        return _collect(td, simulator, wall, integrator, accuracy, signal, seed, bandwidth, duration, log_rate)
+        return [_collect(td, simulator, wall / td.copies, integrator, accuracy, signal, seed, bandwidth, duration, log_rate, b)
+                for b in range(td.copies)]
     finally:
         release(td.diagram)
 
@@ -354,18 +376,22 @@ def _advance(simulator, duration, progress):
             bar.update(t - bar.n)
 
 
-def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, seed, bandwidth, duration, log_rate) -> SimulationResult:
+def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, seed, bandwidth, duration, log_rate,
+             copy: int = 0) -> SimulationResult:
+    """The result of copy `copy` of the model (`TrunkDiagram.copies`; its share of the wall time)."""
     from trunk_drake.signals.resample import resample_pchip
 
     ctx = simulator.get_context()
     t = np.arange(int(np.floor(duration * log_rate + 1e-9)) + 1) / log_rate
+    nq, n = td.plant.num_positions() // td.copies, td.model.n_muscles
+    rows = {"state": np.r_[copy * nq:(copy + 1) * nq, td.plant.num_positions() + copy * nq:td.plant.num_positions() + (copy + 1) * nq]}
     logs = {}
     for name, sink in td.loggers.items():
         log = sink.FindLog(ctx)
-        logs[name] = resample_pchip(log.sample_times(), log.data().T, t, drop_duplicates=True)
+        data = log.data()[rows.get(name, np.s_[copy * n:(copy + 1) * n])]
+        logs[name] = resample_pchip(log.sample_times(), data.T, t, drop_duplicates=True)
     step_times = np.unique(td.loggers["state"].FindLog(ctx).sample_times())
     x = logs["state"]
-    nq = td.plant.num_positions()
     q, v = x[:, :nq], x[:, nq:]
     coords = list(td.model.coordinates)
     # the platform signal is known analytically: sample it exactly (not from the step-wise log)
@@ -388,7 +414,7 @@ def _collect(td: TrunkDiagram, simulator, wall, integrator, accuracy, signal, se
     opts = dataclasses.asdict(td.options)
     opts["constants"] = dataclasses.asdict(td.options.constants)
     return SimulationResult(
-        time=t, coordinates=coords, q=q, v=v, lumbar_rotation=x[:, td.fe_indices].sum(axis=1), muscles=list(td.model.muscles),
+        time=t, coordinates=coords, q=q, v=v, lumbar_rotation=x[:, td.fe_indices[:len(td.fe_indices) // td.copies]].sum(axis=1), muscles=list(td.model.muscles),
         activation=logs.get("activation"), excitation=logs.get("excitation"), muscle_force=logs.get("tendon_force"),
         normalized_fiber_length=logs.get("normalized_fiber_length"),
         normalized_fiber_velocity=logs.get("normalized_fiber_velocity"), fiber_length=logs.get("fiber_length"),

@@ -22,14 +22,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from tqdm import tqdm
 
-from trunk_drake.diagram import TrunkOptions
+from trunk_drake.diagram import CopiesUnsupported, TrunkOptions
 from trunk_drake.io.prepared import PreparedTrial, prepare_trials
 from trunk_drake.metadata import json_default
 from trunk_drake.optim.gains import GAIN_BOUNDS, GainLayout
 from trunk_drake.optim.least_squares import finite_difference_jacobian, inverse_or_inf, levenberg_marquardt
 from trunk_drake.parallel import WorkerPool
 from trunk_drake.signals import estimate_frf, vaf
-from trunk_drake.simulation import SimulationError, differentiable_settings, replay_key, simulate
+from trunk_drake.simulation import SimulationError, differentiable_settings, replay_key, simulate, simulate_gain_sets
 
 # Stop when an accepted step lowers the cost by less than this fraction. The cost is a chi-square/2, about half the
 # number of samples at the noise floor (14406 for the two reference trials), and one SD of a gain moves it by 0.5:
@@ -91,11 +91,29 @@ class Objective:
 
     def of_target(self, x, k: int, steps=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """Target k's part of `__call__`: its residuals, the engaged kp parameters and its step times."""
-        target = self.targets[k]
-        engaged = np.zeros(len(self.layout.groups), dtype=bool)
         try:
-            result = self.simulate(x, target, steps)
+            result = self.simulate(x, self.targets[k], steps)
         except SimulationError:  # an unstable gain set: a large, finite residual keeps the search going
+            result = None
+        return self._part(result, self.targets[k])
+
+    def of_target_many(self, points, k: int, steps) -> list[tuple]:
+        """`of_target` of each of `points` on the step sequence `steps`: as copies of the model in one simulation
+        (`simulate_gain_sets`, the same results to round-off) where the diagram allows, else (or when a copy fails)
+        one by one."""
+        target = self.targets[k]
+        try:
+            results = simulate_gain_sets(self.model, [self.layout.gains(x) for x in points], steps, duration=float(target.time[-1]),
+                                         perturbation=target.signal, options=self.options, log_rate=target.fs,
+                                         log=("normalized_fiber_length",))
+        except (CopiesUnsupported, SimulationError):
+            return [self.of_target(x, k, steps) for x in points]
+        return [self._part(result, target) for result in results]
+
+    def _part(self, result, target: PreparedTrial) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """A target's residuals, engaged kp parameters and step times from its simulation (None: it diverged)."""
+        engaged = np.zeros(len(self.layout.groups), dtype=bool)
+        if result is None:
             model_out = {n: np.full_like(target.time, np.radians(90.0)) for n in target.outputs}
             engaged[:] = True
             step_times = None
@@ -120,9 +138,22 @@ def combine(per_target: list[tuple]) -> tuple[np.ndarray, np.ndarray, list]:
 
 def _evaluate(model, job):
     """Worker job: one target's part of the objective (targets, layout, options, accuracy) at x, on its step
-    sequence `steps` if given (a point's targets run as separate jobs, so both workers share even one point)."""
+    sequence `steps` if given (a point's targets run as separate jobs, so both workers share even one point);
+    with several points (a list), each one's, on `steps` (`Objective.of_target_many`)."""
     x, problem, k, steps = job
+    if isinstance(x, list):
+        return Objective(model, *problem).of_target_many(x, k, steps)
     return Objective(model, *problem).of_target(x, k, steps)
+
+
+def point_jobs(points: list, n_targets: int, steps: list, workers: int) -> list[tuple[list[int], int]]:
+    """How `evaluate_many` splits points x targets into worker jobs: (indices of points, target). Each point alone
+    on its own step sequence (`steps` None); on a replayed one, every target's points in as few groups as keep the
+    workers busy (`Objective.of_target_many` runs a group as one simulation)."""
+    if steps[0] is None or len(points) <= 1:
+        return [([i], k) for i in range(len(points)) for k in range(n_targets)]
+    groups = np.array_split(np.arange(len(points)), min(len(points), max(1, -(-workers // n_targets))))
+    return [(list(g), k) for g in groups for k in range(n_targets)]
 
 
 @dataclass
@@ -218,17 +249,20 @@ def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_
         keys = [replay_key((p.tobytes(),), on) for p in points]
         todo = [(p, k) for p, k in zip(points, keys) if k not in cache]
         steps = cache[on][2] if on is not None else [None] * len(targets)
-        jobs = [(p, problem, j, steps[j]) for p, _ in todo for j in range(len(targets))]
-        parts = [None] * len(jobs)
-        with tqdm(total=len(jobs), desc=f"  start {current['start'] + 1}/{n_starts}: {what}", unit="sim",
+        plan = point_jobs([p for p, _ in todo], len(targets), steps, pool.workers if pool.parallel else 1)
+        jobs = [([todo[i][0] for i in group] if len(group) > 1 else todo[group[0]][0], problem, k, steps[k]) for group, k in plan]
+        parts = [[None] * len(targets) for _ in todo]
+        with tqdm(total=len(todo) * len(targets), desc=f"  start {current['start'] + 1}/{n_starts}: {what}", unit="sim",
                   leave=False, disable=not progress or not todo) as bar:
-            for i, part, error in pool.completed(_evaluate, jobs):
+            for j, part, error in pool.completed(_evaluate, jobs):
                 if error is not None:
                     raise error
-                parts[i] = part
-                bar.update(1)
+                group, k = plan[j]
+                for i, one in zip(group, part if len(group) > 1 else [part]):
+                    parts[i][k] = one
+                bar.update(len(group))
         for n, (p, k) in enumerate(todo):
-            result = combine(parts[n * len(targets):(n + 1) * len(targets)])
+            result = combine(parts[n])
             cache[k] = result
             counter["simulations"] += len(targets)
             history.append({"start": current["start"], "cost": float(0.5 * result[0] @ result[0]), "gains": layout.gains(p)})

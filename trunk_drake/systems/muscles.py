@@ -26,8 +26,8 @@ def muscle_parameters(model, strength_scale: float = 1.0) -> MuscleParameters:
     )
 
 
-def empty_path_state(model) -> PathState:
-    n, nv = model.n_muscles, model.plant.num_velocities()
+def empty_path_state(model, copies: int = 1) -> PathState:
+    n, nv = model.n_muscles * copies, model.plant.num_velocities() * copies
     return PathState(np.zeros(n), np.zeros((n, nv)), np.zeros(n))
 
 
@@ -43,10 +43,13 @@ class MuscleSystem(LeafSystem):
     switches muscles off (their tendon force is zeroed), for studies that add groups one by one.
     With `srs` (rigid tendons) the short-range stiffness force is added along every fiber and the
     reference normalised fiber lengths it acts about are further states (muscle.short_range).
+    With `copies` > 1 it holds the muscles of that many copies of the model in turn (`params` per muscle of
+    all of them), and the path state has their coordinates (`MusclePathSystem` with copies).
     """
 
     def __init__(self, model, constants: ThelenConstants | None = None, tendon: str = "rigid",
-                 params: MuscleParameters | None = None, mask=None, srs: ShortRangeStiffness | None = None):
+                 params: MuscleParameters | None = None, mask=None, srs: ShortRangeStiffness | None = None,
+                 copies: int = 1):
         super().__init__()
         if tendon not in TENDON_MODES:
             raise ValueError(f"tendon={tendon!r}; expected one of {TENDON_MODES}")
@@ -56,8 +59,8 @@ class MuscleSystem(LeafSystem):
         self.constants = constants or ThelenConstants()
         self.params = params or muscle_parameters(model)
         self.tendon = tendon
-        self.n = n = model.n_muscles
-        nv = model.plant.num_velocities()
+        self.n = n = model.n_muscles * copies
+        nv = model.plant.num_velocities() * copies
         self.mask = None if mask is None else np.asarray(mask, dtype=float)
         if self.mask is not None and self.mask.shape != (n,):
             raise ValueError(f"muscle mask must have {n} entries, got shape {self.mask.shape}")
@@ -69,7 +72,7 @@ class MuscleSystem(LeafSystem):
         self.DeclareContinuousState(len(x0))
         self._x0 = x0
         self._u = self.DeclareVectorInputPort("excitation", n)
-        self._path = self.DeclareAbstractInputPort("path_state", AbstractValue.Make(empty_path_state(model)))
+        self._path = self.DeclareAbstractInputPort("path_state", AbstractValue.Make(empty_path_state(model, copies)))
         self._kin = declare_memo(self, "rigid-tendon fiber kinematics", self._eval_path,  # the path object: by identity
                                  self._rigid_kinematics, {self._path.ticket()})
         state_and_path = {self.all_state_ticket(), self._path.ticket()}

@@ -17,16 +17,20 @@ class MusclePathSystem(LeafSystem):
     The path kinematics (compiled body kinematics and paths, `TrunkModel.path_state_from_q`)
     are computed once per plant state and kept in the Context (a memo entry: implicit
     integrators perturb muscle states with the plant state unchanged), and shared by every consumer.
-    With a `table` (`model.tables.CoordinateTable`, one coordinate) they come from it inside its grid.
+    With a `table` (`model.tables.CoordinateTable`, one coordinate) they come from it inside its grid; with
+    `copies` > 1 (a table needed) the input holds that many copies' coordinates, the output their muscles in turn.
     """
 
-    def __init__(self, model, table=None):
+    def __init__(self, model, table=None, copies: int = 1):
         super().__init__()
-        self._model, self._table = model, table
-        self._nq = model.plant.num_positions()
-        self._state = self.DeclareVectorInputPort("plant_state", self._nq + model.plant.num_velocities())
+        if copies > 1 and table is None:
+            raise ValueError("copies of a model need its one-coordinate table (model.tables)")
+        self._model, self._table, self._copies = model, table, copies
+        self._nq = model.plant.num_positions() * copies
+        self._state = self.DeclareVectorInputPort("plant_state", self._nq + model.plant.num_velocities() * copies)
         self._memo = declare_memo(self, "path kinematics", self._eval_state, self._compute, {self._state.ticket()})
-        empty = PathState(np.zeros(model.n_muscles), np.zeros((model.n_muscles, self._nq)), np.zeros(model.n_muscles))
+        n = model.n_muscles * copies
+        empty = PathState(np.zeros(n), np.zeros((n, self._nq)), np.zeros(n))
         self.DeclareAbstractOutputPort("path_state", lambda: AbstractValue.Make(empty),
                                        weak(self._calc_path_state), prerequisites_of_calc={self._memo.ticket()})
 
@@ -39,6 +43,6 @@ class MusclePathSystem(LeafSystem):
     def _compute(self, context, x) -> PathState:
         if not np.isfinite(x.sum()):  # any NaN or inf; Drake would abort on non-finite positions
             raise RuntimeError(f"non-finite plant state at t={context.get_time():.6g} s: {x}")
-        if self._table is not None and self._table.covers(x[0]):
-            return self._table.paths(x[0], x[1])
+        if self._table is not None and (self._copies > 1 or self._table.covers(x[0])):
+            return self._table.paths(x[: self._nq], x[self._nq:])  # copies: TabulatedPlant checks the range
         return self._model.path_state_from_q(x[: self._nq], x[self._nq:])

@@ -14,14 +14,15 @@ class PrescribedPelvisMotion(LeafSystem):
 
     Their sum is the generalized force ``-a(t) M J_com^T d`` (M total mass, J_com the
     centre-of-mass Jacobian, d the world direction of motion; compiled, from the model's body
-    kinematics, or a `table`'s for one coordinate). Input ``plant_state``; output ``generalized_force``.
+    kinematics, or a `table`'s for one coordinate, also for `copies` of it). Input ``plant_state``; output
+    ``generalized_force``.
     """
 
-    def __init__(self, model, signal, direction, table=None):
+    def __init__(self, model, signal, direction, table=None, copies: int = 1):
         super().__init__()
-        self._model, self._signal, self._table = model, signal, table
+        self._model, self._signal, self._table, self._copies = model, signal, table, copies
         self._dir = np.asarray(direction, dtype=float)
-        self._nq, nv = model.plant.num_positions(), model.plant.num_velocities()
+        self._nq, nv = model.plant.num_positions() * copies, model.plant.num_velocities() * copies
         self._state = self.DeclareVectorInputPort("plant_state", self._nq + nv)
         self.DeclareVectorOutputPort("generalized_force", nv, weak(self._calc_force))
 
@@ -31,7 +32,7 @@ class PrescribedPelvisMotion(LeafSystem):
             raise RuntimeError(f"non-finite pelvis-frame positions at t={context.get_time():.6g} s: {q}")
         acceleration = self._signal.evaluate(context.get_time())[2]
         table = self._table
-        load = table.com_load(q[0], self._dir) if table is not None and table.covers(q[0]) else \
+        load = table.com_load(q, self._dir) if table is not None and (self._copies > 1 or table.covers(q)) else \
             self._model.mass_weighted_com_jacobian(q, self._dir)
         output.SetFromVector(-acceleration * load)
 
