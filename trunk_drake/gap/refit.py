@@ -5,14 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from trunk_drake.diagram import TrunkOptions
+from trunk_drake.diagram import CopiesUnsupported, TrunkOptions
 from trunk_drake.gap.linear import OPERATING_POINT_LOGS, OperatingPoint
 from trunk_drake.gap.measures import segment_chi2
 from trunk_drake.gap.space import Fit, SearchSpace
 from trunk_drake.gap.trials import half
 from trunk_drake.optim.least_squares import finite_difference_jacobian, levenberg_marquardt
 from trunk_drake.parallel import WorkerPool
-from trunk_drake.simulation import SimulationError, differentiable_settings, replay_key, simulate
+from trunk_drake.optim.fit import point_jobs
+from trunk_drake.simulation import SimulationError, differentiable_settings, replay_key, simulate, simulate_gain_sets
 
 DIVERGED = 1e12  # chi-square of a simulation that diverged
 
@@ -24,16 +25,38 @@ def simulate_outputs(model, options: TrunkOptions, trial, outputs, steps=None,
     (s) and `steps`, the run stops one replayed step after the first at or after `until` (a refit's training
     half needs no more): the outputs up to `until` are those of the whole run on the same steps (the
     resampling's end slopes reach only into the last step), and there is no operating point."""
-    duration = trial.duration
-    if until is not None and steps is not None and until < duration:
-        steps = steps[: int(np.searchsorted(steps, until)) + 2]
-        duration = float(steps[-1])
+    steps, duration = _truncated(trial, steps, until)
     result = simulate(model, duration=duration, perturbation=trial.signal, options=options, log_rate=trial.fs,
                       log=OPERATING_POINT_LOGS, **differentiable_settings(model, options, steps))  # the refits difference these
+    return _trial_outputs(result, trial, outputs, duration)
+
+
+def _truncated(trial, steps, until):
+    """(steps, duration) of a run that stops one replayed step after `until` (None: the whole trial)."""
+    if until is not None and steps is not None and until < trial.duration:
+        steps = steps[: int(np.searchsorted(steps, until)) + 2]
+        return steps, float(steps[-1])
+    return steps, trial.duration
+
+
+def _trial_outputs(result, trial, outputs, duration):
     columns = [result.lumbar_rotation if o == "lumbar_rotation" else result.coordinate(o) for o in outputs]
     y = np.column_stack(columns)[trial.steady]
     point = OperatingPoint.of(result, trial.steady) if duration == trial.duration else None
     return y - y.mean(axis=0), point, result.step_times
+
+
+def simulate_outputs_many(model, options: list[TrunkOptions], trial, outputs, steps, until=None) -> list:
+    """`simulate_outputs` (or its SimulationError) for each of `options`, which differ in their reflex gains only, on
+    the replayed step sequence `steps`: as copies of the model in one simulation (`simulate_gain_sets`) where the
+    diagram allows, else (or when a copy fails) one by one."""
+    run_steps, duration = _truncated(trial, steps, until)
+    try:
+        results = simulate_gain_sets(model, [{"kp": o.kp, "kv": o.kv} for o in options], run_steps, duration=duration,
+                                     perturbation=trial.signal, options=options[0], log_rate=trial.fs, log=OPERATING_POINT_LOGS)
+    except (CopiesUnsupported, SimulationError):
+        return [simulation_job(model, (o, trial, outputs, steps, until)) for o in options]
+    return [_trial_outputs(result, trial, outputs, duration) for result in results]
 
 
 def train_end(trial) -> float:
@@ -43,8 +66,11 @@ def train_end(trial) -> float:
 
 def simulation_job(model, job):
     """Worker job (options, trial, outputs, steps or None, until or None): `simulate_outputs`, or the
-    SimulationError of a diverging run."""
+    SimulationError of a diverging run; with a list of options (gains apart, the same), a list of those
+    (`simulate_outputs_many`)."""
     options, trial, outputs, steps, until = job
+    if isinstance(options, list):
+        return simulate_outputs_many(model, options, trial, outputs, steps, until)
     try:
         return simulate_outputs(model, options, trial, outputs, steps, until)
     except SimulationError as err:
@@ -87,16 +113,31 @@ class TimeDomainFitter:
         keys = [self.key(p, fx, on, space, train_only) for p, fx in zip(points, each)]
         todo = {k: (p, fx) for k, p, fx in zip(keys, points, each) if k not in self.cache}
         steps = self.cache[on][1] if on is not None else [None] * len(self.trials)
-        jobs = [(space.options_for(p, fx), t, self.outputs, s, train_end(t) if train_only else None)  # stops on replays
-                for p, fx in todo.values() for t, s in zip(self.trials, steps)]
-        sims = self.simulator.map(simulation_job, jobs)
-        self.counter["simulations"] += len(jobs)
-        n = len(self.trials)
-        for i, k in enumerate(todo):
-            chunk = sims[i * n:(i + 1) * n]
+        points_todo = list(todo.values())
+        plan = self._plan(points_todo, space, steps)
+        jobs = [([space.options_for(*points_todo[i]) for i in group] if len(group) > 1 else space.options_for(*points_todo[group[0]]),
+                 self.trials[k], self.outputs, steps[k], train_end(self.trials[k]) if train_only else None)  # stops on replays
+                for group, k in plan]
+        sims = [[None] * len(self.trials) for _ in points_todo]
+        for (group, k), result in zip(plan, self.simulator.map(simulation_job, jobs)):
+            for i, one in zip(group, result if len(group) > 1 else [result]):
+                sims[i][k] = one
+        self.counter["simulations"] += len(points_todo) * len(self.trials)
+        for k, chunk in zip(todo, sims):
             diverged = any(isinstance(c, Exception) for c in chunk)
             self.cache[k] = (None, None) if diverged else ([c[0] for c in chunk], [c[2] for c in chunk])
         return [self.cache[k][0] for k in keys]
+
+    def _plan(self, points, space: SearchSpace, steps) -> list[tuple[list[int], int]]:
+        """Worker jobs for (x, effects) `points` x trials: (indices of points, trial). On replayed steps the points
+        that differ in their gains only (the same effects and effect coordinates: a Jacobian's gain columns) run as
+        groups (`point_jobs`), every other point alone."""
+        workers = self.simulator.workers if self.simulator.parallel else 1
+        alike: dict = {}
+        for i, (p, fx) in enumerate(points):
+            alike.setdefault((tuple(e.name for e in fx), np.asarray(p, float)[space.rank:].tobytes()), []).append(i)
+        return [([members[j] for j in group], k) for members in alike.values()
+                for group, k in point_jobs(members, len(self.trials), steps, workers)]
 
     def seed(self, x, effects, outputs, steps) -> None:
         """Register an existing simulation (e.g. the nominal one) for parameter vector x: outputs and step times per trial."""
