@@ -37,7 +37,7 @@ def test_the_table_matches_the_exact_paths_and_dynamics_everywhere_it_is_used(rh
         assert mass == pytest.approx(plant.CalcMassMatrix(context)[0, 0], rel=1e-9)
         assert gravity == pytest.approx(plant.CalcGravityGeneralizedForces(context)[0], rel=1e-9, abs=1e-9)
         assert bias == pytest.approx(plant.CalcBiasTerm(context)[0], rel=1e-9, abs=1e-12)
-        assert table.com_load(q, direction)[0] == pytest.approx(rhythm.mass_weighted_com_jacobian(np.array([q]), direction)[0],
+        assert table.com_load(q, direction) == pytest.approx(rhythm.mass_weighted_com_jacobian(np.array([q]), direction)[0],
                                                                  rel=1e-9, abs=1e-9)
     assert used > 0.99 * 1501, "the table must cover nearly all of the range (it leaves out moment-arm jumps only)"
     assert not table.covers(hi + 0.01) and not table.covers(lo - 0.01)

@@ -276,14 +276,25 @@ def _copies(base, opts: TrunkOptions, pelvis_mode: str, table, gain_sets) -> int
         return 1
     if not gain_sets:
         raise ValueError("gain_sets is empty: give at least one {'kp': ..., 'kv': ...}")
-    unsupported = [what for what, bad in [
+    unsupported = _unsupported(opts, pelvis_mode, table)
+    if unsupported:
+        raise CopiesUnsupported(f"copies of the model (gain_sets) need {'; '.join(unsupported)}; simulate the sets one by one")
+    return len(gain_sets)
+
+
+def copies_unsupported(model, options: TrunkOptions) -> list[str]:
+    """What keeps a perturbed simulation of `model` with `options` from copies of the model in one diagram
+    (`gain_sets`): empty if nothing does. Callers group their runs by it instead of learning it from a failure."""
+    table = coordinate_table(plant_model_for(model, "prescribed")) if options.tables and model.dofs != "spine3d" else None
+    return _unsupported(options, options.pelvis, table)
+
+
+def _unsupported(opts: TrunkOptions, pelvis_mode: str, table) -> list[str]:
+    return [what for what, bad in [
         ("a model with one coordinate (the rhythm on the prescribed pelvis) and its table (TrunkOptions.tables)", table is None),
         ("the prescribed pelvis or none", pelvis_mode not in ("prescribed", "none")), ("rigid tendons", opts.tendon != "rigid"),
         ("no Golgi tendon or trunk-in-space feedback", bool(opts.gto_gain or opts.vestibular_gain)),
         ("no muscle mask and no short-range stiffness", opts.muscle_mask is not None or opts.srs is not None)] if bad]
-    if unsupported:
-        raise CopiesUnsupported(f"copies of the model (gain_sets) need {'; '.join(unsupported)}; simulate the sets one by one")
-    return len(gain_sets)
 
 
 def _tiled(params, copies: int):

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from trunk_drake.diagram import CopiesUnsupported, TrunkOptions
+from trunk_drake.diagram import CopiesUnsupported, TrunkOptions, copies_unsupported
 from trunk_drake.gap.linear import OPERATING_POINT_LOGS, OperatingPoint
 from trunk_drake.gap.measures import segment_chi2
 from trunk_drake.gap.space import Fit, SearchSpace
@@ -131,13 +131,15 @@ class TimeDomainFitter:
     def _plan(self, points, space: SearchSpace, steps) -> list[tuple[list[int], int]]:
         """Worker jobs for (x, effects) `points` x trials: (indices of points, trial). On replayed steps the points
         that differ in their gains only (the same effects and effect coordinates: a Jacobian's gain columns) run as
-        groups (`point_jobs`), every other point alone."""
+        groups (`point_jobs`) where the diagram can hold copies of the model (`copies_unsupported`), every other
+        point alone."""
         workers = self.simulator.workers if self.simulator.parallel else 1
         alike: dict = {}
         for i, (p, fx) in enumerate(points):
             alike.setdefault((tuple(e.name for e in fx), np.asarray(p, float)[space.rank:].tobytes()), []).append(i)
         return [([members[j] for j in group], k) for members in alike.values()
-                for group, k in point_jobs(members, len(self.trials), steps, workers)]
+                for group, k in point_jobs(members, len(self.trials), steps, workers,
+                                           not copies_unsupported(self.simulator.model, space.options_for(*points[members[0]])))]
 
     def seed(self, x, effects, outputs, steps) -> None:
         """Register an existing simulation (e.g. the nominal one) for parameter vector x: outputs and step times per trial."""

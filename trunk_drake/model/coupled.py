@@ -147,7 +147,7 @@ class CoupledPlant(LeafSystem):
         if table is not None and table.covers(x[0]):
             mass, gravity, bias = table.dynamics(x[0])
             applied = self._applied.Eval(context)[0] if self._applied.HasValue(context) else 0.0
-            vdot = (gravity[0] - bias[0] * x[1] ** 2 + applied) / mass[0]
+            vdot = (gravity - bias * x[1] ** 2 + applied) / mass
             derivatives.get_mutable_vector().SetFromVector([x[1], vdot])
             return
         if self._free_motion is None or not np.array_equal(x, self._free_motion[0]):

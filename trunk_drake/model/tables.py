@@ -52,43 +52,50 @@ class CoordinateTable:
         return self.lo + self.step * self.coefficients.shape[1]
 
     def covers(self, q) -> bool:
-        """Whether every value of q (a number, or one per copy) lies in a tabulated interval."""
-        q = np.atleast_1d(q)
+        """Whether q (a number, or an array of one per copy) lies in tabulated intervals only."""
+        if np.ndim(q) == 0:  # one copy, every evaluation: plain numbers
+            return self.lo <= q <= self.hi and not self.exact[min(int((q - self.lo) / self.step), self.exact.size - 1)]
         return bool(np.all((q >= self.lo) & (q <= self.hi)) and not self.exact[self._locate(q)[0]].any())
 
-    def _locate(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        k = np.minimum(((q - self.lo) / self.step).astype(int), self.coefficients.shape[1] - 1)
+    def _locate(self, q):
+        """Interval and offset in it: numbers for a number q, arrays (copies,) and (copies, 1) for an array."""
+        if np.ndim(q) == 0:
+            k = min(int((q - self.lo) / self.step), self.exact.size - 1)
+            return k, q - (self.lo + k * self.step)
+        k = np.minimum(((q - self.lo) / self.step).astype(int), self.exact.size - 1)
         return k, (q - (self.lo + k * self.step))[:, None]
 
     def _values(self, q, columns: slice) -> np.ndarray:
-        """(copies, columns) at q (copies,)."""
+        """The columns at q: (columns,) for a number, (copies, columns) for an array."""
         k, t = self._locate(q)
         c = self.coefficients[:, k, columns]
         return ((c[0] * t + c[1]) * t + c[2]) * t + c[3]
 
     def paths(self, q, v=None) -> PathState:
-        """Lengths, moment arms and (with v) lengthening velocities at q, one value per copy: the muscles of
-        copy b are rows b*n ... b*n+n-1, and the moment arms (copies * n, copies) are block-diagonal (copy b's
-        muscles act on its own coordinate only), as one model with `copies` coordinates."""
-        q = np.atleast_1d(q)
-        copies, n = q.size, self.n_muscles
+        """Lengths, moment arms and (with v) lengthening velocities at q. For an array q (one value per copy)
+        the muscles of copy b are rows b*n ... b*n+n-1, and the moment arms (copies * n, copies) are
+        block-diagonal (copy b's muscles act on its own coordinate only), as one model with `copies` coordinates."""
+        n = self.n_muscles
         lengths = self._values(q, slice(0, n))
         k, t = self._locate(q)
         s = self.slopes[:, k]
-        slope = (s[0] * t + s[1]) * t + s[2]  # dL/dq (copies, n)
+        slope = (s[0] * t + s[1]) * t + s[2]  # dL/dq: (n,) or (copies, n)
+        if np.ndim(q) == 0:
+            return PathState(lengths=lengths, moment_arms=-slope[:, None], velocities=None if v is None else slope * v)
+        copies = q.size
         arms = np.zeros((copies, n, copies))
         arms[np.arange(copies), :, np.arange(copies)] = -slope
         return PathState(lengths=lengths.reshape(-1), moment_arms=arms.reshape(copies * n, copies),
-                         velocities=None if v is None else (slope * np.atleast_1d(v)[:, None]).reshape(-1))
+                         velocities=None if v is None else (slope * v[:, None]).reshape(-1))
 
-    def dynamics(self, q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """M(q), g(q) and c(q) per copy: the equation of motion is M v' + c v^2 = g + tau."""
-        values = self._values(np.atleast_1d(q), slice(self.n_muscles, self.n_muscles + 3))
-        return values[:, 0], values[:, 1], values[:, 2]
+    def dynamics(self, q):
+        """M(q), g(q) and c(q) (numbers, or one per copy): the equation of motion is M v' + c v^2 = g + tau."""
+        values = self._values(q, slice(self.n_muscles, self.n_muscles + 3))
+        return values[..., 0], values[..., 1], values[..., 2]
 
-    def com_load(self, q, direction) -> np.ndarray:
-        """``M J_com^T d`` at q, one per copy (`TrunkModel.mass_weighted_com_jacobian`)."""
-        return self._values(np.atleast_1d(q), slice(self.n_muscles + 3, None)) @ np.asarray(direction, float)
+    def com_load(self, q, direction):
+        """``M J_com^T d`` at q (a number, or one per copy; `TrunkModel.mass_weighted_com_jacobian`)."""
+        return self._values(q, slice(self.n_muscles + 3, None)) @ direction
 
 
 def coordinate_table(model) -> CoordinateTable | None:

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from tqdm import tqdm
 
-from trunk_drake.diagram import CopiesUnsupported, TrunkOptions
+from trunk_drake.diagram import CopiesUnsupported, TrunkOptions, copies_unsupported
 from trunk_drake.io.prepared import PreparedTrial, prepare_trials
 from trunk_drake.metadata import json_default
 from trunk_drake.optim.gains import GAIN_BOUNDS, GainLayout
@@ -146,11 +146,12 @@ def _evaluate(model, job):
     return Objective(model, *problem).of_target(x, k, steps)
 
 
-def point_jobs(points: list, n_targets: int, steps: list, workers: int) -> list[tuple[list[int], int]]:
+def point_jobs(points: list, n_targets: int, steps: list, workers: int, copies: bool = True) -> list[tuple[list[int], int]]:
     """How `evaluate_many` splits points x targets into worker jobs: (indices of points, target). Each point alone
-    on its own step sequence (`steps` None); on a replayed one, every target's points in as few groups as keep the
-    workers busy (`Objective.of_target_many` runs a group as one simulation)."""
-    if steps[0] is None or len(points) <= 1:
+    on its own step sequence (`steps` None) or where the diagram cannot hold copies (`copies` False,
+    `diagram.copies_unsupported`); on a replayed one, every target's points in as few groups as keep the workers
+    busy (`Objective.of_target_many` runs a group as one simulation)."""
+    if steps[0] is None or len(points) <= 1 or not copies:
         return [([i], k) for i in range(len(points)) for k in range(n_targets)]
     groups = np.array_split(np.arange(len(points)), min(len(points), max(1, -(-workers // n_targets))))
     return [(list(g), k) for g in groups for k in range(n_targets)]
@@ -242,6 +243,7 @@ def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_
 
     problem = (targets, layout, options, accuracy)
     pool = WorkerPool(model, workers)
+    copies = not copies_unsupported(model, options)  # a Jacobian's points as copies of the model in one simulation
 
     def evaluate_many(points, what="cost", on=None):
         """Each point's (residuals, engaged, step times), simulated once; `on`: the cache key of a run whose
@@ -249,7 +251,7 @@ def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_
         keys = [replay_key((p.tobytes(),), on) for p in points]
         todo = [(p, k) for p, k in zip(points, keys) if k not in cache]
         steps = cache[on][2] if on is not None else [None] * len(targets)
-        plan = point_jobs([p for p, _ in todo], len(targets), steps, pool.workers if pool.parallel else 1)
+        plan = point_jobs([p for p, _ in todo], len(targets), steps, pool.workers if pool.parallel else 1, copies)
         jobs = [([todo[i][0] for i in group] if len(group) > 1 else todo[group[0]][0], problem, k, steps[k]) for group, k in plan]
         parts = [[None] * len(targets) for _ in todo]
         with tqdm(total=len(todo) * len(targets), desc=f"  start {current['start'] + 1}/{n_starts}: {what}", unit="sim",

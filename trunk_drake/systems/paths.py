@@ -43,6 +43,8 @@ class MusclePathSystem(LeafSystem):
     def _compute(self, context, x) -> PathState:
         if not np.isfinite(x.sum()):  # any NaN or inf; Drake would abort on non-finite positions
             raise RuntimeError(f"non-finite plant state at t={context.get_time():.6g} s: {x}")
-        if self._table is not None and (self._copies > 1 or self._table.covers(x[0])):
-            return self._table.paths(x[: self._nq], x[self._nq:])  # copies: TabulatedPlant checks the range
+        if self._copies > 1:  # TabulatedPlant checks the range
+            return self._table.paths(x[: self._nq], x[self._nq:])
+        if self._table is not None and self._table.covers(x[0]):
+            return self._table.paths(x[0], x[1])
         return self._model.path_state_from_q(x[: self._nq], x[self._nq:])

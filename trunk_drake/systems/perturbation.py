@@ -32,8 +32,12 @@ class PrescribedPelvisMotion(LeafSystem):
             raise RuntimeError(f"non-finite pelvis-frame positions at t={context.get_time():.6g} s: {q}")
         acceleration = self._signal.evaluate(context.get_time())[2]
         table = self._table
-        load = table.com_load(q, self._dir) if table is not None and (self._copies > 1 or table.covers(q)) else \
-            self._model.mass_weighted_com_jacobian(q, self._dir)
+        if self._copies > 1:
+            load = table.com_load(q, self._dir)
+        elif table is not None and table.covers(q[0]):
+            load = np.array([table.com_load(q[0], self._dir)])
+        else:
+            load = self._model.mass_weighted_com_jacobian(q, self._dir)
         output.SetFromVector(-acceleration * load)
 
 
