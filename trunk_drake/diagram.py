@@ -176,7 +176,8 @@ def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str,
     if table is not None and isinstance(plant, CoupledPlant):  # a MultibodyPlant computes its dynamics in C++
         plant.use_table(table)
     paths = builder.AddNamedSystem("muscle_paths", MusclePathSystem(base, table, copies))
-    params = _tiled(muscle_parameters(base, opts.strength_scale), copies)
+    params_one = muscle_parameters(base, opts.strength_scale)  # one copy's
+    params = _tiled(params_one, copies)
     constants = opts.constants
     if opts.activation_scale != 1.0:
         if not opts.activation_scale > 0:
@@ -188,7 +189,7 @@ def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str,
     gains = gain_sets or [{"kp": opts.kp, "kv": opts.kv}]
     reflex = builder.AddNamedSystem("stretch_reflex", StretchReflex(
         n, np.concatenate([opts.per_muscle(base, g["kp"]) for g in gains]), np.concatenate([opts.per_muscle(base, g["kv"]) for g in gains]),
-        np.tile(_desired_length(base, opts, muscle_parameters(base, opts.strength_scale)), copies)))
+        np.tile(_desired_length(base, opts, params_one), copies)))
     feedforward = opts.feedforward if opts.feedforward is not None else np.full(base.n_muscles, opts.constants.minimum_activation)
     feedforward = np.asarray(feedforward, dtype=float)
     if feedforward.shape != (base.n_muscles,):

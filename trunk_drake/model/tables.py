@@ -54,7 +54,7 @@ class CoordinateTable:
     def covers(self, q) -> bool:
         """Whether q (a number, or an array of one per copy) lies in tabulated intervals only."""
         if np.ndim(q) == 0:  # one copy, every evaluation: plain numbers
-            return self.lo <= q <= self.hi and not self.exact[min(int((q - self.lo) / self.step), self.exact.size - 1)]
+            return self.lo <= q <= self.hi and not self.exact[self._locate(q)[0]]
         return bool(np.all((q >= self.lo) & (q <= self.hi)) and not self.exact[self._locate(q)[0]].any())
 
     def _locate(self, q):
@@ -67,8 +67,11 @@ class CoordinateTable:
 
     def _values(self, q, columns: slice) -> np.ndarray:
         """The columns at q: (columns,) for a number, (copies, columns) for an array."""
-        k, t = self._locate(q)
-        c = self.coefficients[:, k, columns]
+        return self._cubic(self.coefficients, *self._locate(q), columns)
+
+    @staticmethod
+    def _cubic(coefficients, k, t, columns=slice(None)) -> np.ndarray:
+        c = coefficients[:, k, columns]
         return ((c[0] * t + c[1]) * t + c[2]) * t + c[3]
 
     def paths(self, q, v=None) -> PathState:
@@ -76,8 +79,8 @@ class CoordinateTable:
         the muscles of copy b are rows b*n ... b*n+n-1, and the moment arms (copies * n, copies) are
         block-diagonal (copy b's muscles act on its own coordinate only), as one model with `copies` coordinates."""
         n = self.n_muscles
-        lengths = self._values(q, slice(0, n))
         k, t = self._locate(q)
+        lengths = self._cubic(self.coefficients, k, t, slice(0, n))
         s = self.slopes[:, k]
         slope = (s[0] * t + s[1]) * t + s[2]  # dL/dq: (n,) or (copies, n)
         if np.ndim(q) == 0:
