@@ -3,6 +3,7 @@ results where there are any, without worker tracebacks and without leftover work
 
 from __future__ import annotations
 
+import ctypes
 import os
 import signal
 import subprocess
@@ -15,6 +16,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "models" / "reference"
+PR_SET_CHILD_SUBREAPER = 36  # prctl option (linux/prctl.h)
 EXIT_BOUND_S = 5.0  # the promise is 2 s; the bound leaves room for a loaded test machine
 
 
@@ -53,14 +55,43 @@ class Running:
         self.reader.join(timeout=5)
         return elapsed
 
-    def group_is_gone(self) -> bool:
-        for _ in range(40):  # orphaned workers are reaped by init within moments
+    def orphans(self) -> list[str]:
+        """'pid state name' of each process the command left behind (state Z: exited, never reaped)."""
+        return [f"{pid} {state} {name}" for pid, state, name, group in _children() if group == self.proc.pid]
+
+
+def _children() -> list[tuple[int, str, str, int]]:
+    """(pid, state, name, process group) of this process's children, from /proc."""
+    children = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            text = stat.read_text()
+        except OSError:  # exited meanwhile
+            continue
+        name, fields = text[text.index("(") + 1:text.rindex(")")], text[text.rindex(")") + 2:].split()
+        if int(fields[1]) == os.getpid():  # fields: state, parent, process group, ...
+            children.append((int(stat.parent.name), fields[0], name, int(fields[2])))
+    return children
+
+
+@pytest.fixture(autouse=True)
+def _subreaper():
+    """While a test runs, this process is a child subreaper: whatever a command leaves behind, running or
+    exited, becomes its child at once, whatever the machine's init would do later. Killed and reaped after."""
+    if not Path("/proc/self/stat").is_file():
+        pytest.skip("reads processes from Linux /proc")
+    prctl = ctypes.CDLL(None, use_errno=True).prctl
+    prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
+    try:
+        yield
+    finally:
+        prctl(PR_SET_CHILD_SUBREAPER, 0, 0, 0, 0)
+        for pid, *_ in _children():
             try:
-                os.killpg(self.proc.pid, 0)
-            except ProcessLookupError:
-                return True
-            time.sleep(0.05)
-        return False
+                os.kill(pid, signal.SIGKILL)
+                os.waitpid(pid, 0)
+            except (ProcessLookupError, ChildProcessError):
+                pass
 
 
 def _check(run: Running, elapsed: float, last_line: str) -> None:
@@ -70,7 +101,7 @@ def _check(run: Running, elapsed: float, last_line: str) -> None:
     assert elapsed < EXIT_BOUND_S, f"took {elapsed:.1f} s to stop"
     assert "Traceback" not in run.text and "KeyboardInterrupt" not in run.text, run.text
     assert lines[-1] == last_line, run.text
-    assert run.group_is_gone(), "worker processes outlived the command"
+    assert not run.orphans(), f"the command left child processes behind (not reaped): {run.orphans()}"
 
 
 def test_simulate_stops_with_one_line(tmp_path):

@@ -181,15 +181,17 @@ class WorkerPool:
 
 
 def _stop(processes) -> None:
-    """Terminate `processes` and wait until they have exited; one still running 2 s after SIGTERM
-    (a loaded machine) is killed. Exit is read from each process's sentinel: `is_alive` reports a
+    """Terminate `processes`, wait until they have exited and reap them; one still running 2 s after
+    SIGTERM (a loaded machine) is killed. Exit is read from each process's sentinel: `is_alive` reports a
     process as alive when the executor's own thread has just reaped it."""
     processes = list(processes)
     for process in processes:
         process.terminate()
     for process in still_running(processes, timeout=2.0):
         process.kill()
-    still_running(processes, timeout=5.0)
+    for process in processes:  # reap: a zombie left to init keeps the process group alive until init waits for it
+        if not still_running([process], timeout=5.0):
+            process.join(timeout=1.0)
 
 
 def still_running(processes, timeout: float) -> list:
