@@ -44,6 +44,13 @@ def off_kink_options(model) -> TrunkOptions:
     return TrunkOptions(stiffness=300.0, damping=6.0, feedforward=feedforward, l_desired=1.0, **thesis_gains())
 
 
+class FakeFitter:
+    """Base of the search tests' stand-ins for TimeDomainFitter: independent fits one after another."""
+
+    def concurrently(self, calls):
+        return [call() for call in calls]
+
+
 @pytest.mark.parametrize("dofs", ["sagittal", "rhythm"])
 def test_linearisation_matches_a_small_amplitude_simulation(dofs):
     """The screening's linear model against the nonlinear diagram on a 0.5 mm RMS multisine (0.2-3 Hz, odd
@@ -181,7 +188,7 @@ def test_an_effect_no_better_than_more_gain_directions_is_not_claimed():
     from trunk_drake.gap.space import Fit, SearchSpace
     from trunk_drake.optim.gains import GainLayout
 
-    class Fitter:  # the gains along one more direction reach `rival`; an effect on top of them `nested` (held-out)
+    class Fitter(FakeFitter):  # the gains along one more direction reach `rival`; an effect on top of them `nested` (held-out)
         def __init__(self, rival, nested):
             self.rival, self.nested, self.spaces = rival, nested, []
 
@@ -228,7 +235,7 @@ def test_gains_first_adopts_the_widened_gains_before_any_effect_is_weighed():
     from trunk_drake.gap.space import Fit, SearchSpace
     from trunk_drake.optim.gains import GainLayout
 
-    class Fitter:  # the gains along a third direction gain 150 held-out; a fourth 5 (below the threshold)
+    class Fitter(FakeFitter):  # the gains along a third direction gain 150 held-out; a fourth 5 (below the threshold)
         space = None
 
         def fit(self, effects, x0, free, space=None):
@@ -259,7 +266,7 @@ def test_the_check_also_simulates_a_linear_fit_with_the_current_gains():
     from trunk_drake.gap.space import Fit, SearchSpace
     from trunk_drake.optim.gains import GainLayout
 
-    class Fitter:  # a simulation fits the training halves well only with the current gains (0.1, 0.2)
+    class Fitter(FakeFitter):  # a simulation fits the training halves well only with the current gains (0.1, 0.2)
         def outputs_of(self, points, effects, space=None):
             return [np.asarray(p, float) for p in points]
 
@@ -310,7 +317,7 @@ def test_with_gains_first_an_added_effect_is_refitted_from_several_magnitudes():
     def chi2(x):  # two basins: the gains absorbing a little damping (1400), and the truth, 16 (1000)
         return min(1400.0 + 1e3 * (x[1] - 1.0) ** 2, 1000.0 + 1e3 * (x[1] - 16.0) ** 2)
 
-    class Fitter:
+    class Fitter(FakeFitter):
         def __init__(self):
             self.starts = []
 
@@ -404,7 +411,7 @@ def test_the_polish_refits_every_gain_direction_and_drops_an_effect_the_gains_th
     from trunk_drake.gap.space import Fit, SearchSpace
     from trunk_drake.optim.gains import GainLayout
 
-    class Fitter:  # held-out chi2 by the effects fitted: both 1000, the delay alone 1005, the mass alone 1400
+    class Fitter(FakeFitter):  # held-out chi2 by the effects fitted: both 1000, the delay alone 1005, the mass alone 1400
         def __init__(self):
             self.calls = []
 
@@ -447,7 +454,7 @@ def test_after_the_polish_the_selection_goes_on_on_every_gain_direction():
     from trunk_drake.gap.space import Fit, SearchSpace
     from trunk_drake.optim.gains import GainLayout
 
-    class Fitter:  # held-out chi2 by the effects fitted: both 1000, the delay alone 1400, the mass alone 1300
+    class Fitter(FakeFitter):  # held-out chi2 by the effects fitted: both 1000, the delay alone 1400, the mass alone 1300
         def __init__(self):
             self.calls = []
 
@@ -487,7 +494,7 @@ def test_a_partner_masked_by_the_chosen_effect_is_refitted_with_it_from_its_own_
     from trunk_drake.gap.space import Fit, SearchSpace
     from trunk_drake.optim.gains import GainLayout
 
-    class Fitter:  # held-out chi2 by the effects fitted
+    class Fitter(FakeFitter):  # held-out chi2 by the effects fitted
         def __init__(self, chi2):
             self.chi2, self.calls = chi2, []
 

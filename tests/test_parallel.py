@@ -50,6 +50,26 @@ def test_a_job_error_reaches_the_caller(sagittal, workers):
             pool.map(_fails, [1])
 
 
+def _interval(model, seconds):
+    start = time.time()
+    time.sleep(seconds)
+    return start, time.time()
+
+
+def test_concurrent_searches_share_the_workers(sagittal):
+    """`concurrently`: independent callers, each mapping one job at a time, keep both workers busy at once;
+    results in order, the first error raised; without workers one after another in this process."""
+    with WorkerPool(sagittal, workers=2) as pool:
+        (a0, a1), (b0, b1) = pool.concurrently([lambda: pool.map(_interval, [1.0])[0], lambda: pool.map(_interval, [1.0])[0]])
+        assert a0 < b1 and b0 < a1, "the two jobs ran at the same time"
+        with pytest.raises(ValueError, match="job 2 failed"):
+            pool.concurrently([lambda: pool.map(_lengths, [np.zeros(len(sagittal.coordinates))]), lambda: pool.map(_fails, [2])])
+    with WorkerPool(sagittal, workers=1) as pool:
+        order = []
+        assert pool.concurrently([lambda: order.append(1) or "a", lambda: order.append(2) or "b"]) == ["a", "b"]
+        assert order == [1, 2]
+
+
 def test_leaving_the_pool_by_an_exception_ends_running_jobs_at_once(sagittal):
     start = time.perf_counter()
     with pytest.raises(KeyboardInterrupt):

@@ -90,6 +90,7 @@ class WorkerPool:
         self.model, self.workers, self.cluster = model, workers, cluster
         self.recipe = ModelRecipe.of(model)
         self._executor = self._client = self._recipe_future = None
+        self._starting = threading.Lock()  # `concurrently`'s threads may start the workers together
 
     @property
     def parallel(self) -> bool:
@@ -102,6 +103,23 @@ class WorkerPool:
         self.close(terminate=kind is not None)
         if caused_by_interrupt(error):  # Ctrl-C: no child process may outlive us
             _stop(multiprocessing.active_children())
+
+    def concurrently(self, calls) -> list:
+        """The results of the zero-argument `calls`, in order, each run in its own thread of this process while
+        they map jobs to this pool: independent sequential searches (each waiting on its few jobs at a time)
+        then keep every worker busy. Without workers (or a cluster) one after another: the jobs run in this
+        process, and Drake's objects are not thread-safe. The first exception is raised here."""
+        calls = list(calls)
+        if not self.parallel or len(calls) < 2:
+            return [call() for call in calls]
+        from concurrent.futures import ThreadPoolExecutor
+
+        threads = ThreadPoolExecutor(len(calls), thread_name_prefix="concurrently")
+        try:
+            futures = [threads.submit(call) for call in calls]
+            return [future.result() for future in futures]
+        finally:  # on an error (Ctrl-C too) the others are not awaited: the pool's exit stops their jobs
+            threads.shutdown(wait=False, cancel_futures=True)
 
     def map(self, fn, jobs) -> list:
         """Results of all jobs, in order; a worker's exception is raised here."""
@@ -131,9 +149,10 @@ class WorkerPool:
             yield from self._local(fn, jobs)
 
     def _local(self, fn, jobs):
-        if self._executor is None:
-            self._executor = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("fork"),
-                                                 initializer=_init_local, initargs=(self.recipe,))
+        with self._starting:
+            if self._executor is None:
+                self._executor = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("fork"),
+                                                     initializer=_init_local, initargs=(self.recipe,))
         key = self.recipe.key
         # SIGINT is blocked while the workers are forked: a Ctrl-C then waits for this process
         # (not lost), and the workers, which inherit the mask, ignore it before unblocking it
@@ -156,9 +175,10 @@ class WorkerPool:
     def _dask(self, fn, jobs):
         from dask.distributed import Client, as_completed
 
-        if self._client is None:
-            self._client = Client(self.cluster)
-            self._recipe_future = self._client.scatter(self.recipe, broadcast=True)
+        with self._starting:
+            if self._client is None:
+                self._client = Client(self.cluster)
+                self._recipe_future = self._client.scatter(self.recipe, broadcast=True)
         futures = self._client.map(_run, [fn] * len(jobs), [self._recipe_future] * len(jobs), jobs, pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         for future in as_completed(futures):

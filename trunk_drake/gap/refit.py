@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from trunk_drake.diagram import CopiesUnsupported, TrunkOptions, copies_unsupported
@@ -87,10 +89,15 @@ class TimeDomainFitter:
         self.simulator, self.space, self.trials, self.noise, self.outputs = simulator, space, trials, noise, outputs
         self.counter = counter if counter is not None else {"simulations": 0}  # shared with whoever reports progress
         self.cache: dict = {}  # `key` (the model simulated, the run replayed or None) -> (outputs, steps)
+        self._counting = threading.Lock()  # fits may run concurrently (`WorkerPool.concurrently`)
 
     @property
     def simulations(self) -> int:
         return self.counter["simulations"]
+
+    def concurrently(self, calls) -> list:
+        """The results of independent fits (zero-argument calls of this fitter), run at once on its pool."""
+        return self.simulator.concurrently(calls)
 
     def key(self, x, effects, on=None, space: SearchSpace | None = None, train_only: bool = False) -> tuple:
         """The cache key of x simulated on the step sequences of the run keyed `on` (`replay_key`), over the
@@ -122,7 +129,8 @@ class TimeDomainFitter:
         for (group, k), result in zip(plan, self.simulator.map(simulation_job, jobs)):
             for i, one in zip(group, result if len(group) > 1 else [result]):
                 sims[i][k] = one
-        self.counter["simulations"] += len(points_todo) * len(self.trials)
+        with self._counting:
+            self.counter["simulations"] += len(points_todo) * len(self.trials)
         for k, chunk in zip(todo, sims):
             diverged = any(isinstance(c, Exception) for c in chunk)
             self.cache[k] = (None, None) if diverged else ([c[0] for c in chunk], [c[2] for c in chunk])

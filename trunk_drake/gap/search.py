@@ -106,6 +106,10 @@ class _Search:
         self.models: dict[frozenset, Fit] = {}  # the jointly fitted models, by effect set
         self.all_gains = False  # searching on every gain direction (after the polish): every refit in rounds (`polish_fit`)
 
+    def together(self, calls) -> list:
+        """The results of independent refits (zero-argument calls), run at once: the workers stay busy."""
+        return self.fitter.concurrently(calls)
+
     def dbic(self, without: Fit, with_: Fit, effect) -> float:
         """Held-out evidence for `effect` in `with_` against `without`."""
         return float(without.heldout_chi2 - with_.heldout_chi2 - len(effect.parameters) * self.penalty)
@@ -308,11 +312,17 @@ class _Search:
         five points there, and a refit in rounds costs 120-300 simulations)."""
         fits = {}
         rows[:] = self.check(current, rows)
-        for row in [r for r in rows if "linear_fit" in r][:1 if self.all_gains else self.settings.refine]:
-            lin = row.pop("linear_fit")
+        chosen = [r for r in rows if "linear_fit" in r][:1 if self.all_gains else self.settings.refine]
+        calls = []  # every row's refits from each of its starts, run concurrently
+        for row in chosen:
+            held = self.effects(current.effects) + (self.candidates[row["effect"]],)
+            calls += [(row["effect"], lambda held=held, x0=x0: self.fit_added(current, held, x0))
+                      for x0 in self.starts(current, held, row["linear_fit"].x)]
+        refits = self.together([call for _, call in calls])
+        for row in chosen:
+            row.pop("linear_fit")
             e = self.candidates[row["effect"]]
-            held = self.effects(current.effects) + (e,)
-            fit = min((self.fit_added(current, held, x0) for x0 in self.starts(current, held, lin.x)), key=lambda f: f.train_chi2)
+            fit = min((f for (name, _), f in zip(calls, refits) if name == e.name), key=lambda f: f.train_chi2)
             if fit.outputs is None:
                 row["status"] = "failed: the refitted model diverged in simulation"
             else:
@@ -380,10 +390,15 @@ class _Search:
         gain iterations too, which alone can gain about the threshold), and then every effect must earn its place
         (`backward`). Returns the model, `final` where no partner passes."""
         threshold, pairs, tried = self.settings.threshold, {}, {}
-        for name, single in singles.items():
+
+        def pair(name: str, single: Fit) -> Fit:
             e = self.candidates[name]
             x0 = np.concatenate([final.x, single.x[single.x.size - len(e.parameters):]])
-            fit = polish_fit(self.fitter, self.effects(final.effects) + (e,), x0, self.space, threshold)
+            return polish_fit(self.fitter, self.effects(final.effects) + (e,), x0, self.space, threshold)
+
+        fitted = self.together([lambda n=n, f=f: pair(n, f) for n, f in singles.items()])
+        for name, fit in zip(singles, fitted):
+            e = self.candidates[name]
             if fit.outputs is not None:
                 pairs[name], tried[name] = fit, self.dbic(final, fit, e)
                 self.say(f"partner {name}: dBIC {tried[name]:.1f} with {fit.values}")
@@ -412,7 +427,7 @@ class _Search:
         refitted without it (`without`), down to `floor` effects; and the effects dropped."""
         dropped = set()
         while len(current.effects) > floor:
-            without = {n: self.without(current, n) for n in current.effects}
+            without = dict(zip(current.effects, self.together([lambda n=n: self.without(current, n) for n in current.effects])))
             own = {n: self.dbic(w, current, self.candidates[n]) for n, w in without.items()}
             weakest = min(own, key=own.get)
             if own[weakest] > self.settings.threshold:
