@@ -378,6 +378,34 @@ def test_a_point_of_a_wider_gain_space_at_zero_along_the_new_directions_is_the_s
     assert fitter.key([0.1, -0.2], ()) != fitter.key([0.1, -0.2, 0.05], (delay,))  # the effect is part of the model
 
 
+def test_a_refits_points_that_differ_in_variant_fields_run_as_copies():
+    """On replayed steps the points whose options differ only in `VARIANT_FIELDS` (the gains, and effects that set
+    only those: a delay, damping, strength) run as one group per trial; an effect that copies cannot hold (seat
+    compliance), a delay of zero beside positive ones, and points on their own steps run one by one."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.refit import TimeDomainFitter
+    from trunk_drake.gap.space import SearchSpace
+
+    model = td.load_model("rhythm")
+    space = SearchSpace.around(model, dataclasses.replace(nominal_options(), reflex_delay=0.02))
+    space = SearchSpace(space.options, space.layout, np.eye(len(space.layout.names))[:, :2])
+    fitter = TimeDomainFitter(SimpleNamespace(workers=2, parallel=True, model=model), space, [None] * 3, None, ())
+    delay, damping, seat = effect("reflex_delay"), effect("extra_damping"), effect("seat_compliance")
+    steps = [np.linspace(0.0, 1.0, 5)] * 3
+    points = [(np.array([0.0, 0.0, 0.03]), (delay,)), (np.array([0.1, 0.0, 0.03]), (delay,)),
+              (np.array([0.0, 0.1, 0.03]), (delay,)), (np.array([0.0, 0.0, 0.05]), (delay,)),  # a Jacobian's columns
+              (np.array([0.0, 0.0, 4.0]), (damping,)), (np.array([0.0, 0.0, 5.0, 2.5]), (seat,))]
+    plan = fitter._plan(points, space, steps)
+    assert sorted(k for group, k in plan if group == [0, 1, 2, 3, 4]) == [0, 1, 2]  # the delay's and damping's points
+    assert sorted((group, k) for group, k in plan if group != [0, 1, 2, 3, 4]) == [([5], 0), ([5], 1), ([5], 2)]
+    no_delay = SearchSpace(dataclasses.replace(space.options, reflex_delay=0.0), space.layout, space.directions)
+    plan = fitter._plan([(np.zeros(2), ()), (np.array([0.0, 0.0, 0.03]), (delay,))], no_delay, steps)
+    assert sorted(group for group, _ in plan) == [[0]] * 3 + [[1]] * 3
+    assert len(fitter._plan(points[:4], space, [None] * 3)) == 12  # each on its own steps
+
+
 def test_a_refit_step_simulates_the_training_half_only_and_gets_its_outputs_exactly():
     """The refits' own steps are scored on the training halves: their simulations stop at the end of the half,
     on the same replayed steps, and give the same outputs there as the whole run (the fitted point runs whole)."""

@@ -1,5 +1,5 @@
 """The one-coordinate tables (trunk_drake.model.tables) against the exact computation they replace, and copies of the
-model in one diagram (simulation.simulate_gain_sets) against their own simulations."""
+model in one diagram (simulation.simulate_copies) against their own simulations."""
 
 import dataclasses
 
@@ -10,7 +10,7 @@ import trunk_drake as td
 from trunk_drake.diagram import CopiesUnsupported, TrunkOptions
 from trunk_drake.model.tables import TOLERANCE, coordinate_table
 from trunk_drake.signals import make_multisine
-from trunk_drake.simulation import simulate, simulate_gain_sets
+from trunk_drake.simulation import simulate, simulate_copies
 
 
 @pytest.fixture(scope="module")
@@ -56,11 +56,11 @@ def test_a_simulation_with_tables_follows_the_exact_one_on_its_steps(rhythm):
 
 
 def test_copies_of_the_model_in_one_diagram_give_each_copys_own_simulation(rhythm):
-    """simulate_gain_sets: every copy equals its own simulate on the same step sequence (to round-off)."""
+    """simulate_copies: every copy equals its own simulate on the same step sequence (to round-off)."""
     options = TrunkOptions(reflex_delay=0.02, stiffness=150.0, feedforward=np.full(rhythm.n_muscles, 0.03))
     sets = [{"kp": 0.5, "kv": 0.3}, {"kp": {"sacrospinalis": 2.0}, "kv": 0.1}, {"kp": 0.0, "kv": 1.0}]
     own = simulate(rhythm, duration=2.0, bandwidth=2.0, options=options, log=(), **sets[0])
-    copies = simulate_gain_sets(rhythm, sets, own.step_times, duration=2.0, perturbation=make_multisine(f_max=2.0, seed=0, fade_shape="quintic"),
+    copies = simulate_copies(rhythm, sets, own.step_times, duration=2.0, perturbation=make_multisine(f_max=2.0, seed=0, fade_shape="quintic"),
                                 options=options, log=("normalized_fiber_length",))
     for gains, copy in zip(sets, copies):
         alone = simulate(rhythm, duration=2.0, bandwidth=2.0, options=options, steps=own.step_times,
@@ -70,9 +70,30 @@ def test_copies_of_the_model_in_one_diagram_give_each_copys_own_simulation(rhyth
     assert np.degrees(np.abs(copies[0].lumbar_rotation - copies[2].lumbar_rotation).max()) > 0.01, "the gains must matter"
 
 
+def test_copies_may_differ_in_every_variant_field(rhythm):
+    """Copies whose bushings, strength, activation time scale and reflex delay differ (the gap search's effect
+    columns): each equals its own simulation on the same steps, and each field changes the response."""
+    options = TrunkOptions(reflex_delay=0.02, stiffness=150.0, feedforward=np.full(rhythm.n_muscles, 0.03), kp=0.5, kv=0.3)
+    variants = [{}, {"stiffness": 300.0}, {"damping": 12.0}, {"cubic": 800.0}, {"strength_scale": 1.4},
+                {"activation_scale": 2.5}, {"reflex_delay": 0.05}, {"kp": 1.0, "reflex_delay": 0.03, "activation_scale": 1.5}]
+    signal = make_multisine(f_max=2.0, seed=0, fade_shape="quintic")
+    own = simulate(rhythm, duration=2.0, perturbation=signal, options=options, log=())
+    copies = simulate_copies(rhythm, variants, own.step_times, duration=2.0, perturbation=signal, options=options, log=())
+    for variant, copy in zip(variants, copies):
+        alone = simulate(rhythm, duration=2.0, perturbation=signal, options=dataclasses.replace(options, **variant),
+                         steps=own.step_times, log=())
+        assert np.abs(copy.lumbar_rotation - alone.lumbar_rotation).max() < 1e-12, variant
+        if variant:
+            assert np.degrees(np.abs(copy.lumbar_rotation - copies[0].lumbar_rotation).max()) > 1e-4, f"{variant} must matter"
+    with pytest.raises(ValueError, match="may differ in"):
+        simulate_copies(rhythm, [{"tendon": "compliant"}] * 2, own.step_times, duration=2.0, perturbation=signal, options=options)
+    with pytest.raises(CopiesUnsupported, match="all positive or all zero"):
+        simulate_copies(rhythm, [{}, {"reflex_delay": 0.0}], own.step_times, duration=2.0, perturbation=signal, options=options)
+
+
 def test_copies_need_a_model_and_options_they_support(rhythm):
     steps = np.linspace(0.0, 1.0, 11)
     with pytest.raises(CopiesUnsupported, match="rigid tendons"):
-        simulate_gain_sets(rhythm, [{"kp": 0.1, "kv": 0.1}] * 2, steps, duration=1.0, options=TrunkOptions(tendon="compliant"))
+        simulate_copies(rhythm, [{"kp": 0.1, "kv": 0.1}] * 2, steps, duration=1.0, options=TrunkOptions(tendon="compliant"))
     with pytest.raises(CopiesUnsupported, match="one coordinate"):
-        simulate_gain_sets(td.load_model("sagittal"), [{"kp": 0.1, "kv": 0.1}] * 2, steps, duration=1.0)
+        simulate_copies(td.load_model("sagittal"), [{"kp": 0.1, "kv": 0.1}] * 2, steps, duration=1.0)

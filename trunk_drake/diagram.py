@@ -89,7 +89,7 @@ class TrunkDiagram:
     loggers: dict[str, VectorLogSink]
     fe_indices: np.ndarray  # indices of the lumbar flexion-extension coordinates in q
     feedforward: np.ndarray  # the constant feed-forward excitation
-    copies: int = 1  # copies of the model (`gain_sets`): q holds copy b's coordinates at b * nq ... (b + 1) * nq - 1
+    copies: int = 1  # copies of the model (`variants`): q holds copy b's coordinates at b * nq ... (b + 1) * nq - 1
 
     def names(self, kind: str) -> list[str]:
         """The diagram's "coordinates" or "muscles" in order, each copy's marked (``name[b]``) where there are copies."""
@@ -131,16 +131,22 @@ def plant_model_for(model, pelvis: str):
     return model.variant(pelvis_free=(pelvis == "force"))
 
 
+# What copies of the model in one diagram may differ in (`build_trunk_diagram`'s `variants`): TrunkOptions fields.
+VARIANT_FIELDS = ("kp", "kv", "stiffness", "damping", "cubic", "strength_scale", "activation_scale", "reflex_delay")
+
+
 def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation=None, log_period: float = 0.0,
-                        log: tuple[str, ...] = MUSCLE_LOGS, gain_sets: list[dict] | None = None) -> TrunkDiagram:
+                        log: tuple[str, ...] = MUSCLE_LOGS, variants: list[dict] | None = None) -> TrunkDiagram:
     """Build the diagram for `model` (sagittal or rhythm). `perturbation` is a platform signal with
     `evaluate(t) -> (x, v, a)` (e.g. `trunk_drake.signals.make_multisine(...)`), or None.
     Loggers record the plant state and the muscle histories `log` (of MUSCLE_LOGS) at every integrator
     step (``log_period=0``) or at a fixed period; fits log only what they use (each log is evaluated every step).
-    `gain_sets` (a list of {"kp": ..., "kv": ...}, each as `TrunkOptions.kp`): one copy of the model per set, all
-    in one diagram on one integrator (a TabulatedPlant: the rhythm on the prescribed pelvis, rigid tendons, the
-    stretch reflex as the only feedback), so that a finite-difference Jacobian's points share each evaluation's
-    fixed cost; the copies differ only in their gains."""
+    `variants` (a list of dicts of `VARIANT_FIELDS`, e.g. {"kp": ..., "kv": ...} as `TrunkOptions.kp`, the
+    others as in `options`): one copy of the model per variant, all in one diagram on one integrator (a
+    TabulatedPlant: the rhythm on the prescribed pelvis, rigid tendons, the stretch reflex as the only feedback),
+    so that a finite-difference Jacobian's points share each evaluation's fixed cost; the copies differ only in
+    those fields (reflex gains, bushing stiffness, damping and stiffening, muscle strength, activation time
+    scale, reflex delay: all delays positive or none)."""
     unknown = set(log) - set(MUSCLE_LOGS)
     if unknown:
         raise ValueError(f"unknown muscle logs {sorted(unknown)}; choose from {MUSCLE_LOGS}")
@@ -158,17 +164,18 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
         base = plant_model_for(model, "prescribed")
     builder = DiagramBuilder()
     try:
-        return _assemble(builder, base, opts, perturbation, pelvis_mode, log_period, log, gain_sets)
+        return _assemble(builder, base, opts, perturbation, pelvis_mode, log_period, log, variants)
     except BaseException:  # bad input found mid-build: free what was added (nested diagrams too)
         release(builder)
         raise
 
 
 def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str, log_period: float,
-              log: tuple[str, ...], gain_sets: list[dict] | None) -> TrunkDiagram:
+              log: tuple[str, ...], variants: list[dict] | None) -> TrunkDiagram:
     """The systems of `build_trunk_diagram`, added to `builder` and connected; the built diagram."""
     table = coordinate_table(base) if opts.tables else None
-    copies = _copies(base, opts, pelvis_mode, table, gain_sets)
+    copies = _copies(base, opts, pelvis_mode, table, variants)
+    each = [replace(opts, **v) for v in variants] if variants else [opts]  # each copy's options
     plant = base.plant if copies == 1 else TabulatedPlant(table, copies)
     nq, nv, n = plant.num_positions(), plant.num_velocities(), base.n_muscles * copies
     fe = (rotation_coordinates(base)[None, :] + base.plant.num_positions() * np.arange(copies)[:, None]).reshape(-1)
@@ -176,20 +183,14 @@ def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str,
     if table is not None and isinstance(plant, CoupledPlant):  # a MultibodyPlant computes its dynamics in C++
         plant.use_table(table)
     paths = builder.AddNamedSystem("muscle_paths", MusclePathSystem(base, table, copies))
-    params_one = muscle_parameters(base, opts.strength_scale)  # one copy's
-    params = _tiled(params_one, copies)
-    constants = opts.constants
-    if opts.activation_scale != 1.0:
-        if not opts.activation_scale > 0:
-            raise ValueError(f"activation_scale must be > 0, got {opts.activation_scale}")
-        constants = replace(constants, activation_time_constant=constants.activation_time_constant * opts.activation_scale,
-                            deactivation_time_constant=constants.deactivation_time_constant * opts.activation_scale)
+    params_each = _parameters_each(base, each)
+    params = params_each[0] if copies == 1 else _joined(params_each)
+    constants, time_scale = _activation_constants(base, opts.constants, [o.activation_scale for o in each])
     muscles = builder.AddNamedSystem("muscles", MuscleSystem(base, constants, opts.tendon, params, mask=opts.muscle_mask,
-                                                                srs=opts.srs, copies=copies))
-    gains = gain_sets or [{"kp": opts.kp, "kv": opts.kv}]
+                                                                srs=opts.srs, copies=copies, time_scale=time_scale))
     reflex = builder.AddNamedSystem("stretch_reflex", StretchReflex(
-        n, np.concatenate([opts.per_muscle(base, g["kp"]) for g in gains]), np.concatenate([opts.per_muscle(base, g["kv"]) for g in gains]),
-        np.tile(_desired_length(base, opts, params_one), copies)))
+        n, np.concatenate([o.per_muscle(base, o.kp) for o in each]), np.concatenate([o.per_muscle(base, o.kv) for o in each]),
+        np.tile(_desired_length(base, opts, params_each[0]), copies)))  # fiber lengths: not changed by the strength
     feedforward = opts.feedforward if opts.feedforward is not None else np.full(base.n_muscles, opts.constants.minimum_activation)
     feedforward = np.asarray(feedforward, dtype=float)
     if feedforward.shape != (base.n_muscles,):
@@ -214,15 +215,17 @@ def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str,
         feedback.append(port)
     mixer = builder.AddNamedSystem("excitation", ExcitationMixer(n, len(feedback), opts.constants.minimum_activation))
     levels = len(base.level_matrix)
+    per_level = {f: np.concatenate([np.broadcast_to(np.asarray(getattr(o, f), float), (levels,)) for o in each])
+                 for f in ("stiffness", "damping", "cubic")}
     bushings = builder.AddNamedSystem("bushings", IntervertebralBushings(
-        nq, nv, np.kron(np.eye(copies), base.level_matrix), *(np.tile(np.broadcast_to(np.asarray(value, float), (levels,)), copies)
-                                                              for value in (opts.stiffness, opts.damping)), cubic=opts.cubic))
+        nq, nv, np.kron(np.eye(copies), base.level_matrix), per_level["stiffness"], per_level["damping"], cubic=per_level["cubic"]))
 
     builder.Connect(plant.get_state_output_port(), paths.get_input_port())
     builder.Connect(plant.get_state_output_port(), bushings.get_input_port(0))
     builder.Connect(paths.GetOutputPort("path_state"), muscles.GetInputPort("path_state"))
+    delays = np.repeat([o.reflex_delay for o in each], base.n_muscles)
     for name in ("normalized_fiber_length", "normalized_fiber_velocity"):
-        _connect_delayed(builder, muscles.GetOutputPort(name), reflex.GetInputPort(name), opts.reflex_delay, name, n)
+        _connect_delayed(builder, muscles.GetOutputPort(name), reflex.GetInputPort(name), delays, name, n)
     builder.Connect(ff.get_output_port(), mixer.GetInputPort("feedforward"))
     for k, port in enumerate(feedback):
         builder.Connect(port, mixer.GetInputPort(f"feedback_{k}"))
@@ -268,24 +271,60 @@ def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str,
 
 
 class CopiesUnsupported(ValueError):
-    """This diagram cannot hold copies of its model (`build_trunk_diagram`'s `gain_sets`): simulate one by one."""
+    """This diagram cannot hold copies of its model (`build_trunk_diagram`'s `variants`): simulate one by one."""
 
 
-def _copies(base, opts: TrunkOptions, pelvis_mode: str, table, gain_sets) -> int:
-    """The number of model copies `gain_sets` asks for, checked against what copies support."""
-    if gain_sets is None:
+def _copies(base, opts: TrunkOptions, pelvis_mode: str, table, variants) -> int:
+    """The number of model copies `variants` asks for, checked against what copies support."""
+    if variants is None:
         return 1
-    if not gain_sets:
-        raise ValueError("gain_sets is empty: give at least one {'kp': ..., 'kv': ...}")
+    if not variants:
+        raise ValueError("variants is empty: give at least one dict of option fields (e.g. {'kp': ..., 'kv': ...})")
+    for k, variant in enumerate(variants):
+        other = set(variant) - set(VARIANT_FIELDS)
+        if other:
+            raise ValueError(f"variants[{k}] sets {sorted(other)}: copies of the model may differ in {list(VARIANT_FIELDS)} only")
     unsupported = _unsupported(opts, pelvis_mode, table)
+    delays = [v.get("reflex_delay", opts.reflex_delay) for v in variants]
+    if any(d > 0 for d in delays) and not all(d > 0 for d in delays):
+        unsupported.append("reflex delays all positive or all zero")
     if unsupported:
-        raise CopiesUnsupported(f"copies of the model (gain_sets) need {'; '.join(unsupported)}; simulate the sets one by one")
-    return len(gain_sets)
+        raise CopiesUnsupported(f"copies of the model (variants) need {'; '.join(unsupported)}; simulate them one by one")
+    return len(variants)
+
+
+def _parameters_each(base, each: list[TrunkOptions]) -> list:
+    """Each copy's muscle parameters (computed once per strength scale)."""
+    by_scale = {}
+    for o in each:
+        if o.strength_scale not in by_scale:
+            by_scale[o.strength_scale] = muscle_parameters(base, o.strength_scale)
+    return [by_scale[o.strength_scale] for o in each]
+
+
+def _joined(params_each: list):
+    """The muscle parameters of copies one after another."""
+    fields = dataclasses.asdict(params_each[0])
+    return type(params_each[0])(**{k: np.concatenate([getattr(p, k) for p in params_each]) for k in fields})
+
+
+def _activation_constants(base, constants, scales: list[float]):
+    """(constants, time scale per muscle or None): one scale for all copies is folded into the activation time
+    constants; copies with scales of their own keep the constants and scale per muscle."""
+    for scale in scales:
+        if not scale > 0:
+            raise ValueError(f"activation_scale must be > 0, got {scale}")
+    if len(set(scales)) > 1:
+        return constants, np.repeat(scales, base.n_muscles)
+    if scales[0] == 1.0:
+        return constants, None
+    return replace(constants, activation_time_constant=constants.activation_time_constant * scales[0],
+                   deactivation_time_constant=constants.deactivation_time_constant * scales[0]), None
 
 
 def copies_unsupported(model, options: TrunkOptions) -> list[str]:
     """What keeps a perturbed simulation of `model` with `options` from copies of the model in one diagram
-    (`gain_sets`): empty if nothing does. Callers group their runs by it instead of learning it from a failure."""
+    (`variants`): empty if nothing does. Callers group their runs by it instead of learning it from a failure."""
     table = coordinate_table(plant_model_for(model, "prescribed")) if options.tables and model.dofs != "spine3d" else None
     return _unsupported(options, options.pelvis, table)
 
@@ -296,11 +335,6 @@ def _unsupported(opts: TrunkOptions, pelvis_mode: str, table) -> list[str]:
         ("the prescribed pelvis or none", pelvis_mode not in ("prescribed", "none")), ("rigid tendons", opts.tendon != "rigid"),
         ("no Golgi tendon or trunk-in-space feedback", bool(opts.gto_gain or opts.vestibular_gain)),
         ("no muscle mask and no short-range stiffness", opts.muscle_mask is not None or opts.srs is not None)] if bad]
-
-
-def _tiled(params, copies: int):
-    """Muscle parameters repeated for `copies` copies of the model."""
-    return type(params)(**{k: np.tile(v, copies) for k, v in dataclasses.asdict(params).items()})
 
 
 def release(diagram: Diagram | DiagramBuilder) -> None:
@@ -327,9 +361,9 @@ def muscle_systems_alive() -> int:
     return sum(type(item) is MuscleSystem for item in gc.get_objects())
 
 
-def _connect_delayed(builder, source, destination, delay: float, name: str, size: int) -> None:
-    """Connect `source` to `destination`, through a TransportDelay when `delay` > 0."""
-    if delay > 0:
+def _connect_delayed(builder, source, destination, delay, name: str, size: int) -> None:
+    """Connect `source` to `destination`, through a TransportDelay when `delay` (s; one, or one per element) > 0."""
+    if np.all(np.asarray(delay) > 0):
         block = builder.AddNamedSystem(f"delay_{name}", TransportDelay(size, delay))
         builder.Connect(source, block.get_input_port(0))
         source = block.get_output_port(0)

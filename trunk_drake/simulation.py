@@ -258,21 +258,23 @@ def simulate(model, duration: float | None = None, perturbation="multisine", ban
                      max_step, progress, steps, log, option_overrides)[0]
 
 
-def simulate_gain_sets(model, gain_sets: list[dict], steps: np.ndarray, duration: float | None = None, perturbation="multisine",
-                       options: TrunkOptions | None = None, log_rate: float = DEFAULT_LOG_RATE,
-                       log: tuple[str, ...] = MUSCLE_LOGS) -> list[SimulationResult]:
-    """`simulate` once per reflex-gain set of `gain_sets` ({"kp": ..., "kv": ...}, each as `TrunkOptions.kp`), all on
-    the replayed step sequence `steps`, as copies of the model in one diagram (`build_trunk_diagram`'s `gain_sets`:
-    the rhythm on the prescribed pelvis, rigid tendons, no other feedback). Each result equals its own `simulate` on
-    `steps` to round-off, at a fraction of the cost: the copies share every evaluation's fixed cost (the points of a
-    finite-difference Jacobian). A copy that diverges or leaves the tabulated range fails them all (SimulationError)."""
-    return _simulate(model, list(gain_sets), duration, perturbation, 1.0, 0, None, options, None, None, log_rate, None, False,
+def simulate_copies(model, variants: list[dict], steps: np.ndarray, duration: float | None = None, perturbation="multisine",
+                    options: TrunkOptions | None = None, log_rate: float = DEFAULT_LOG_RATE,
+                    log: tuple[str, ...] = MUSCLE_LOGS) -> list[SimulationResult]:
+    """`simulate` once per variant of `options` (a dict of `diagram.VARIANT_FIELDS`: reflex gains {"kp": ..., "kv": ...}
+    as `TrunkOptions.kp`, bushing stiffness, damping and stiffening, strength scale, activation time scale, reflex
+    delay), all on the replayed step sequence `steps`, as copies of the model in one diagram (`build_trunk_diagram`'s
+    `variants`: the rhythm on the prescribed pelvis, rigid tendons, no other feedback). Each result equals its own
+    `simulate` on `steps` to round-off, at a fraction of the cost: the copies share every evaluation's fixed cost
+    (the points of a finite-difference Jacobian). A copy that diverges or leaves the tabulated range fails them all
+    (SimulationError)."""
+    return _simulate(model, list(variants), duration, perturbation, 1.0, 0, None, options, None, None, log_rate, None, False,
                      steps, log, {})
 
 
-def _simulate(model, gain_sets, duration, perturbation, bandwidth, seed, lowpass_hz, options, integrator, accuracy, log_rate,
+def _simulate(model, variants, duration, perturbation, bandwidth, seed, lowpass_hz, options, integrator, accuracy, log_rate,
               max_step, progress, steps, log, option_overrides) -> list[SimulationResult]:
-    """`simulate` (`gain_sets` None: one result) or `simulate_gain_sets` (one result per set)."""
+    """`simulate` (`variants` None: one result) or `simulate_copies` (one result per variant)."""
     opts = dataclasses.replace(options or TrunkOptions(), **option_overrides)
     integrator = integrator or default_integrator(model, opts)
     nonstiff = integrator == NONSTIFF_INTEGRATOR
@@ -293,9 +295,9 @@ def _simulate(model, gain_sets, duration, perturbation, bandwidth, seed, lowpass
     elif max_step is None:
         delays = [max(d, MIN_DELAY_STEP) for d in (opts.reflex_delay, opts.vestibular_delay) if d > 0]
         max_step = min(NONSTIFF_MAX_STEP if nonstiff else MAX_STEP, 0.1 / bandwidth, *delays)
-    if gain_sets is not None and steps is None:
-        raise ValueError("simulate_gain_sets replays a step sequence: give `steps` (a previous run's step_times)")
-    td = build_trunk_diagram(model, opts, signal, log=tuple(log), gain_sets=gain_sets)
+    if variants is not None and steps is None:
+        raise ValueError("simulate_copies replays a step sequence: give `steps` (a previous run's step_times)")
+    td = build_trunk_diagram(model, opts, signal, log=tuple(log), variants=variants)
     simulator = Simulator(td.diagram)
     ResetIntegratorFromFlags(simulator, integrator, max_step)
     integ = simulator.get_mutable_integrator()

@@ -3,11 +3,13 @@
 
 from __future__ import annotations
 
+import dataclasses
+import pickle
 import threading
 
 import numpy as np
 
-from trunk_drake.diagram import CopiesUnsupported, TrunkOptions, copies_unsupported
+from trunk_drake.diagram import VARIANT_FIELDS, CopiesUnsupported, TrunkOptions, copies_unsupported
 from trunk_drake.gap.linear import OPERATING_POINT_LOGS, OperatingPoint
 from trunk_drake.gap.measures import segment_chi2
 from trunk_drake.gap.space import Fit, SearchSpace
@@ -15,7 +17,7 @@ from trunk_drake.gap.trials import half
 from trunk_drake.optim.least_squares import finite_difference_jacobian, levenberg_marquardt
 from trunk_drake.parallel import WorkerPool
 from trunk_drake.optim.fit import point_jobs
-from trunk_drake.simulation import SimulationError, differentiable_settings, replay_key, simulate, simulate_gain_sets
+from trunk_drake.simulation import SimulationError, differentiable_settings, replay_key, simulate, simulate_copies
 
 DIVERGED = 1e12  # chi-square of a simulation that diverged
 
@@ -49,13 +51,14 @@ def _trial_outputs(result, trial, outputs, duration):
 
 
 def simulate_outputs_many(model, options: list[TrunkOptions], trial, outputs, steps, until=None) -> list:
-    """`simulate_outputs` (or its SimulationError) for each of `options`, which differ in their reflex gains only, on
-    the replayed step sequence `steps`: as copies of the model in one simulation (`simulate_gain_sets`) where the
+    """`simulate_outputs` (or its SimulationError) for each of `options`, which differ in `VARIANT_FIELDS` only, on
+    the replayed step sequence `steps`: as copies of the model in one simulation (`simulate_copies`) where the
     diagram allows, else (or when a copy fails) one by one."""
     run_steps, duration = _truncated(trial, steps, until)
     try:
-        results = simulate_gain_sets(model, [{"kp": o.kp, "kv": o.kv} for o in options], run_steps, duration=duration,
-                                     perturbation=trial.signal, options=options[0], log_rate=trial.fs, log=OPERATING_POINT_LOGS)
+        results = simulate_copies(model, [{f: getattr(o, f) for f in VARIANT_FIELDS} for o in options], run_steps,
+                                  duration=duration, perturbation=trial.signal, options=options[0], log_rate=trial.fs,
+                                  log=OPERATING_POINT_LOGS)
     except (CopiesUnsupported, SimulationError):
         return [simulation_job(model, (o, trial, outputs, steps, until)) for o in options]
     return [_trial_outputs(result, trial, outputs, duration) for result in results]
@@ -138,13 +141,15 @@ class TimeDomainFitter:
 
     def _plan(self, points, space: SearchSpace, steps) -> list[tuple[list[int], int]]:
         """Worker jobs for (x, effects) `points` x trials: (indices of points, trial). On replayed steps the points
-        that differ in their gains only (the same effects and effect coordinates: a Jacobian's gain columns) run as
-        groups (`point_jobs`) where the diagram can hold copies of the model (`copies_unsupported`), every other
-        point alone."""
+        whose options differ only in `VARIANT_FIELDS` (gains, and effects that only set those fields: a Jacobian's
+        columns, a check's starts) run as groups (`point_jobs`) where the diagram can hold copies of the model
+        (`copies_unsupported`), every other point alone."""
         workers = self.simulator.workers if self.simulator.parallel else 1
         alike: dict = {}
         for i, (p, fx) in enumerate(points):
-            alike.setdefault((tuple(e.name for e in fx), np.asarray(p, float)[space.rank:].tobytes()), []).append(i)
+            options = space.options_for(p, fx)
+            rest = dataclasses.replace(options, **{f: None for f in VARIANT_FIELDS})
+            alike.setdefault((pickle.dumps(rest), options.reflex_delay > 0), []).append(i)  # copies: all delayed or none
         return [([members[j] for j in group], k) for members in alike.values()
                 for group, k in point_jobs(members, len(self.trials), steps, workers,
                                            not copies_unsupported(self.simulator.model, space.options_for(*points[members[0]])))]

@@ -419,15 +419,19 @@ def clamp_activation(activation, constants: ThelenConstants = THESIS_CONSTANTS):
 
 
 def activation_derivative(excitation, activation,
-                          constants: ThelenConstants = THESIS_CONSTANTS):
+                          constants: ThelenConstants = THESIS_CONSTANTS, time_scale=None):
     """da/dt (1/s) of OpenSim 4.6's first-order activation model.
 
     Activation is clamped to [minimum_activation, 1], excitation is used as given (as
     OpenSim 4.6 does); ``tau = tau_act (0.5 + 1.5 a)`` when u > a, else
-    ``tau_deact / (0.5 + 1.5 a)``.
+    ``tau_deact / (0.5 + 1.5 a)``. `time_scale` (one value or one per muscle) multiplies both
+    time constants.
     """
+    tau_act, tau_deact = constants.activation_time_constant, constants.deactivation_time_constant
+    if time_scale is not None:
+        tau_act, tau_deact = tau_act * time_scale, tau_deact * time_scale
     return _activation_rate(np.asarray(excitation, dtype=float), np.asarray(activation, dtype=float), constants.minimum_activation,
-                            constants.activation_time_constant, constants.deactivation_time_constant)
+                            tau_act, tau_deact)
 
 
 @numba.vectorize(["float64(float64, float64, float64, float64, float64)"], cache=True)

@@ -29,7 +29,7 @@ from trunk_drake.optim.gains import GAIN_BOUNDS, GainLayout
 from trunk_drake.optim.least_squares import finite_difference_jacobian, inverse_or_inf, levenberg_marquardt
 from trunk_drake.parallel import WorkerPool
 from trunk_drake.signals import estimate_frf, vaf
-from trunk_drake.simulation import SimulationError, differentiable_settings, replay_key, simulate, simulate_gain_sets
+from trunk_drake.simulation import SimulationError, differentiable_settings, replay_key, simulate, simulate_copies
 
 # Stop when an accepted step lowers the cost by less than this fraction. The cost is a chi-square/2, about half the
 # number of samples at the noise floor (14406 for the two reference trials), and one SD of a gain moves it by 0.5:
@@ -99,11 +99,11 @@ class Objective:
 
     def of_target_many(self, points, k: int, steps) -> list[tuple]:
         """`of_target` of each of `points` on the step sequence `steps`: as copies of the model in one simulation
-        (`simulate_gain_sets`, the same results to round-off) where the diagram allows, else (or when a copy fails)
+        (`simulate_copies`, the same results to round-off) where the diagram allows, else (or when a copy fails)
         one by one."""
         target = self.targets[k]
         try:
-            results = simulate_gain_sets(self.model, [self.layout.gains(x) for x in points], steps, duration=float(target.time[-1]),
+            results = simulate_copies(self.model, [self.layout.gains(x) for x in points], steps, duration=float(target.time[-1]),
                                          perturbation=target.signal, options=self.options, log_rate=target.fs,
                                          log=("normalized_fiber_length",))
         except (CopiesUnsupported, SimulationError):

@@ -17,11 +17,12 @@ class IntervertebralBushings(LeafSystem):
     indices (into q and v) of the level angles, or a matrix L (n_levels, n_q) with level angles
     ``L q`` (a coupled configuration, e.g. ``model.level_matrix`` of the rhythm); the generalized
     force is ``L^T`` of the level moments. With ``cubic > 0`` the moment-angle law stiffens:
-    M = -k (dq + cubic * dq^3) - c v, with `cubic` in 1/rad^2.
+    M = -k (dq + cubic * dq^3) - c v, with `cubic` in 1/rad^2. Stiffness, damping, rest angle and cubic
+    coefficient are each one value or one per level.
     """
 
     def __init__(self, nq: int, nv: int, coordinates, stiffness=DEFAULT_STIFFNESS, damping=DEFAULT_DAMPING,
-                 rest_angle=0.0, cubic: float = 0.0):
+                 rest_angle=0.0, cubic=0.0):
         super().__init__()
         levels = np.asarray(coordinates)
         self.L = levels.astype(float) if levels.ndim == 2 else np.eye(nq)[levels.astype(int)]
@@ -31,8 +32,8 @@ class IntervertebralBushings(LeafSystem):
         self.k = np.broadcast_to(np.asarray(stiffness, float), (m,)).copy()
         self.c = np.broadcast_to(np.asarray(damping, float), (m,)).copy()
         self.q0 = np.broadcast_to(np.asarray(rest_angle, float), (m,)).copy()
-        self.cubic = float(cubic)
-        if np.any(self.k < 0) or np.any(self.c < 0) or self.cubic < 0:
+        self.cubic = np.broadcast_to(np.asarray(cubic, float), (m,)).copy()
+        if np.any(self.k < 0) or np.any(self.c < 0) or np.any(self.cubic < 0):
             raise ValueError("bushing stiffness, damping and cubic coefficient must be >= 0")
         self._nq = nq
         self.DeclareVectorInputPort("plant_state", nq + nv)

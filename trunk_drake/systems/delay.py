@@ -26,14 +26,18 @@ class TransportDelay(LeafSystem):
     update of the system's abstract state, so the history lives in the Context) and the
     output interpolates that history linearly at ``t - delay`` (method of steps). Before
     ``t = delay`` the output holds the first recorded value. Steps longer than the delay hold
-    the newest value; keep the integrator's maximum step below the delay.
+    the newest value; keep the integrator's maximum step below the delay. `delay` is one value,
+    or one per element (copies of a model with delays of their own).
     """
 
-    def __init__(self, size: int, delay: float):
+    def __init__(self, size: int, delay):
         super().__init__()
-        if not (np.isfinite(delay) and delay > 0):
+        delays = np.broadcast_to(np.asarray(delay, float), (size,))
+        if not (np.all(np.isfinite(delays)) and np.all(delays > 0)):
             raise ValueError(f"transport delay must be a positive number of seconds, got {delay!r}")
-        self.delay = float(delay)
+        self.delay = float(delays.max())  # the longest: how far back the history reaches
+        # elements by delay: (delay, their indices); one entry when all share it
+        self._blocks = [(float(d), np.flatnonzero(delays == d)) for d in np.unique(delays)]
         self._u = self.DeclareVectorInputPort("u", size)
         self._history = self.DeclareAbstractState(AbstractValue.Make(History()))
         self.DeclareVectorOutputPort("y", size, weak(self._calc),
@@ -67,12 +71,21 @@ class TransportDelay(LeafSystem):
         if not times:  # before initialization: output the current input
             output.SetFromVector(self._u.Eval(context))
             return
-        t = context.get_time() - self.delay
-        if t <= times[0]:
-            output.SetFromVector(values[0])
-        elif t >= times[-1]:
-            output.SetFromVector(values[-1])
-        else:
-            k = bisect.bisect_right(times, t)
-            w = (t - times[k - 1]) / (times[k] - times[k - 1])
-            output.SetFromVector((1 - w) * values[k - 1] + w * values[k])
+        if len(self._blocks) == 1:
+            output.SetFromVector(_at(times, values, context.get_time() - self.delay))
+            return
+        y = np.empty(len(values[0]))
+        for delay, elements in self._blocks:
+            y[elements] = _at(times, values, context.get_time() - delay, elements)
+        output.SetFromVector(y)
+
+
+def _at(times: list, values: list, t: float, elements=slice(None)) -> np.ndarray:
+    """The recorded input (its `elements`) at time t: linear between the recorded steps, held beyond them."""
+    if t <= times[0]:
+        return values[0][elements]
+    if t >= times[-1]:
+        return values[-1][elements]
+    k = bisect.bisect_right(times, t)
+    w = (t - times[k - 1]) / (times[k] - times[k - 1])
+    return (1 - w) * values[k - 1][elements] + w * values[k][elements]

@@ -44,12 +44,13 @@ class MuscleSystem(LeafSystem):
     With `srs` (rigid tendons) the short-range stiffness force is added along every fiber and the
     reference normalised fiber lengths it acts about are further states (muscle.short_range).
     With `copies` > 1 it holds the muscles of that many copies of the model in turn (`params` per muscle of
-    all of them), and the path state has their coordinates (`MusclePathSystem` with copies).
+    all of them), and the path state has their coordinates (`MusclePathSystem` with copies); `time_scale`
+    (one per muscle, or None) multiplies the activation time constants where copies differ in them.
     """
 
     def __init__(self, model, constants: ThelenConstants | None = None, tendon: str = "rigid",
                  params: MuscleParameters | None = None, mask=None, srs: ShortRangeStiffness | None = None,
-                 copies: int = 1):
+                 copies: int = 1, time_scale=None):
         super().__init__()
         if tendon not in TENDON_MODES:
             raise ValueError(f"tendon={tendon!r}; expected one of {TENDON_MODES}")
@@ -60,6 +61,7 @@ class MuscleSystem(LeafSystem):
         self.params = params or muscle_parameters(model)
         self.tendon = tendon
         self.n = n = model.n_muscles * copies
+        self.time_scale = None if time_scale is None else np.broadcast_to(np.asarray(time_scale, float), (n,)).copy()
         nv = model.plant.num_velocities() * copies
         self.mask = None if mask is None else np.asarray(mask, dtype=float)
         if self.mask is not None and self.mask.shape != (n,):
@@ -164,7 +166,7 @@ class MuscleSystem(LeafSystem):
 
     def DoCalcTimeDerivatives(self, context, derivatives):  # noqa: N802 (Drake API)
         x = context.get_continuous_state_vector().CopyToVector()
-        da = thelen.activation_derivative(self._u.Eval(context), x[: self.n], self.constants)
+        da = thelen.activation_derivative(self._u.Eval(context), x[: self.n], self.constants, self.time_scale)
         if self.tendon == "compliant":
             da = np.concatenate([da, self.muscle_state(context).fiber_velocity])
         if self.srs is not None:

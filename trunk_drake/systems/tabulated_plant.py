@@ -11,7 +11,7 @@ from trunk_drake.systems.weak import weak
 class TabulatedPlant(LeafSystem):
     """`copies` copies of a one-coordinate model (the rhythm on a welded pelvis), each ``M v' + c v^2 = g + tau``
     with M, g and c from its `model.tables.CoordinateTable`: a finite-difference Jacobian's points simulated as
-    one diagram (`simulation.simulate_gain_sets`). State [q (copies); v (copies)]; input
+    one diagram (`simulation.simulate_copies`). State [q (copies); v (copies)]; input
     ``applied_generalized_force`` (copies); output ``state``. A copy leaving the table raises: the caller runs
     the copies one by one instead (the single-copy diagram falls back to the exact dynamics there)."""
 
