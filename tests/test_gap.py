@@ -397,13 +397,14 @@ def test_a_refits_points_that_differ_in_variant_fields_run_as_copies():
     points = [(np.array([0.0, 0.0, 0.03]), (delay,)), (np.array([0.1, 0.0, 0.03]), (delay,)),
               (np.array([0.0, 0.1, 0.03]), (delay,)), (np.array([0.0, 0.0, 0.05]), (delay,)),  # a Jacobian's columns
               (np.array([0.0, 0.0, 4.0]), (damping,)), (np.array([0.0, 0.0, 5.0, 2.5]), (seat,))]
-    plan = fitter._plan(points, space, steps)
+    options = [space.options_for(*p) for p in points]
+    plan = fitter._plan(options, steps)
     assert sorted(k for group, k in plan if group == [0, 1, 2, 3, 4]) == [0, 1, 2]  # the delay's and damping's points
     assert sorted((group, k) for group, k in plan if group != [0, 1, 2, 3, 4]) == [([5], 0), ([5], 1), ([5], 2)]
     no_delay = SearchSpace(dataclasses.replace(space.options, reflex_delay=0.0), space.layout, space.directions)
-    plan = fitter._plan([(np.zeros(2), ()), (np.array([0.0, 0.0, 0.03]), (delay,))], no_delay, steps)
+    plan = fitter._plan([no_delay.options_for(*p) for p in [(np.zeros(2), ()), (np.array([0.0, 0.0, 0.03]), (delay,))]], steps)
     assert sorted(group for group, _ in plan) == [[0]] * 3 + [[1]] * 3
-    assert len(fitter._plan(points[:4], space, [None] * 3)) == 12  # each on its own steps
+    assert len(fitter._plan(options[:4], [None] * 3)) == 12  # each on its own steps
 
 
 def test_a_refit_step_simulates_the_training_half_only_and_gets_its_outputs_exactly():

@@ -209,8 +209,9 @@ def _stop(processes) -> None:
         process.terminate()
     for process in still_running(processes, timeout=2.0):
         process.kill()
+    left = still_running(processes, timeout=5.0)
     for process in processes:  # reap: a zombie left to init keeps the process group alive until init waits for it
-        if not still_running([process], timeout=5.0):
+        if process not in left:
             process.join(timeout=1.0)
 
 

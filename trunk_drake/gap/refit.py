@@ -123,36 +123,35 @@ class TimeDomainFitter:
         keys = [self.key(p, fx, on, space, train_only) for p, fx in zip(points, each)]
         todo = {k: (p, fx) for k, p, fx in zip(keys, points, each) if k not in self.cache}
         steps = self.cache[on][1] if on is not None else [None] * len(self.trials)
-        points_todo = list(todo.values())
-        plan = self._plan(points_todo, space, steps)
-        jobs = [([space.options_for(*points_todo[i]) for i in group] if len(group) > 1 else space.options_for(*points_todo[group[0]]),
+        options = [space.options_for(p, fx) for p, fx in todo.values()]
+        plan = self._plan(options, steps)
+        jobs = [([options[i] for i in group] if len(group) > 1 else options[group[0]],
                  self.trials[k], self.outputs, steps[k], train_end(self.trials[k]) if train_only else None)  # stops on replays
                 for group, k in plan]
-        sims = [[None] * len(self.trials) for _ in points_todo]
+        sims = [[None] * len(self.trials) for _ in options]
         for (group, k), result in zip(plan, self.simulator.map(simulation_job, jobs)):
             for i, one in zip(group, result if len(group) > 1 else [result]):
                 sims[i][k] = one
         with self._counting:
-            self.counter["simulations"] += len(points_todo) * len(self.trials)
+            self.counter["simulations"] += len(options) * len(self.trials)
         for k, chunk in zip(todo, sims):
             diverged = any(isinstance(c, Exception) for c in chunk)
             self.cache[k] = (None, None) if diverged else ([c[0] for c in chunk], [c[2] for c in chunk])
         return [self.cache[k][0] for k in keys]
 
-    def _plan(self, points, space: SearchSpace, steps) -> list[tuple[list[int], int]]:
-        """Worker jobs for (x, effects) `points` x trials: (indices of points, trial). On replayed steps the points
-        whose options differ only in `VARIANT_FIELDS` (gains, and effects that only set those fields: a Jacobian's
-        columns, a check's starts) run as groups (`point_jobs`) where the diagram can hold copies of the model
+    def _plan(self, options: list[TrunkOptions], steps) -> list[tuple[list[int], int]]:
+        """Worker jobs for the points simulated with `options` x trials: (indices of points, trial). On replayed
+        steps the points whose options differ only in `VARIANT_FIELDS` (gains, and effects that only set those
+        fields: a Jacobian's columns) run as groups (`point_jobs`) where the diagram can hold copies of the model
         (`copies_unsupported`), every other point alone."""
         workers = self.simulator.workers if self.simulator.parallel else 1
         alike: dict = {}
-        for i, (p, fx) in enumerate(points):
-            options = space.options_for(p, fx)
-            rest = dataclasses.replace(options, **{f: None for f in VARIANT_FIELDS})
-            alike.setdefault((pickle.dumps(rest), options.reflex_delay > 0), []).append(i)  # copies: all delayed or none
+        for i, o in enumerate(options):
+            rest = dataclasses.replace(o, **{f: None for f in VARIANT_FIELDS})
+            alike.setdefault((pickle.dumps(rest), o.reflex_delay > 0), []).append(i)  # copies: all delayed or none
         return [([members[j] for j in group], k) for members in alike.values()
                 for group, k in point_jobs(members, len(self.trials), steps, workers,
-                                           not copies_unsupported(self.simulator.model, space.options_for(*points[members[0]])))]
+                                           not copies_unsupported(self.simulator.model, options[members[0]]))]
 
     def seed(self, x, effects, outputs, steps) -> None:
         """Register an existing simulation (e.g. the nominal one) for parameter vector x: outputs and step times per trial."""

@@ -106,10 +106,6 @@ class _Search:
         self.models: dict[frozenset, Fit] = {}  # the jointly fitted models, by effect set
         self.all_gains = False  # searching on every gain direction (after the polish): every refit in rounds (`polish_fit`)
 
-    def together(self, calls) -> list:
-        """The results of independent refits (zero-argument calls), run at once: the workers stay busy."""
-        return self.fitter.concurrently(calls)
-
     def dbic(self, without: Fit, with_: Fit, effect) -> float:
         """Held-out evidence for `effect` in `with_` against `without`."""
         return float(without.heldout_chi2 - with_.heldout_chi2 - len(effect.parameters) * self.penalty)
@@ -318,7 +314,7 @@ class _Search:
             held = self.effects(current.effects) + (self.candidates[row["effect"]],)
             calls += [(row["effect"], lambda held=held, x0=x0: self.fit_added(current, held, x0))
                       for x0 in self.starts(current, held, row["linear_fit"].x)]
-        refits = self.together([call for _, call in calls])
+        refits = self.fitter.concurrently([call for _, call in calls])
         for row in chosen:
             row.pop("linear_fit")
             e = self.candidates[row["effect"]]
@@ -396,7 +392,7 @@ class _Search:
             x0 = np.concatenate([final.x, single.x[single.x.size - len(e.parameters):]])
             return polish_fit(self.fitter, self.effects(final.effects) + (e,), x0, self.space, threshold)
 
-        fitted = self.together([lambda n=n, f=f: pair(n, f) for n, f in singles.items()])
+        fitted = self.fitter.concurrently([lambda n=n, f=f: pair(n, f) for n, f in singles.items()])
         for name, fit in zip(singles, fitted):
             e = self.candidates[name]
             if fit.outputs is not None:
@@ -427,7 +423,7 @@ class _Search:
         refitted without it (`without`), down to `floor` effects; and the effects dropped."""
         dropped = set()
         while len(current.effects) > floor:
-            without = dict(zip(current.effects, self.together([lambda n=n: self.without(current, n) for n in current.effects])))
+            without = dict(zip(current.effects, self.fitter.concurrently([lambda n=n: self.without(current, n) for n in current.effects])))
             own = {n: self.dbic(w, current, self.candidates[n]) for n, w in without.items()}
             weakest = min(own, key=own.get)
             if own[weakest] > self.settings.threshold:
