@@ -43,6 +43,38 @@ def test_the_table_matches_the_exact_paths_and_dynamics_everywhere_it_is_used(rh
     assert not table.covers(hi + 0.01) and not table.covers(lo - 0.01)
 
 
+def test_the_rhythm_on_the_pelvis_slide_takes_its_dynamics_from_the_welded_table():
+    """The slide's coupling, velocity-product and gravity terms (`Slide`): accelerations from the table equal the exact
+    plant's solve of M vdot = g - C + tau at postures, rates and forces across the range."""
+    sliding = td.load_model("rhythm", pelvis_free=True)
+    table = coordinate_table(sliding)
+    assert table.slide is not None and table.width == 2
+    plant, context = sliding.plant, sliding.plant.CreateDefaultContext()
+    rng = np.random.default_rng(1)
+    lo, hi = sliding.coordinate_info[1].range
+    for angle in np.linspace(lo + 0.01, hi - 0.01, 37):
+        if not table.covers(angle):
+            continue
+        q, v, tau = np.array([rng.normal(0, 0.05), angle]), rng.normal(0, 1.5, 2), rng.normal(0, 30, 2)
+        plant.SetPositionsAndVelocities(context, np.concatenate([q, v]))
+        exact = np.linalg.solve(plant.CalcMassMatrix(context),
+                                plant.CalcGravityGeneralizedForces(context) - plant.CalcBiasTerm(context) + tau)
+        assert np.abs(table.accelerations(q, v, tau) - exact).max() < 1e-6 * (1 + np.abs(exact).max()), angle
+        arms = table.paths(angle).moment_arms
+        assert arms.shape == (sliding.n_muscles, 2) and not arms[:, 0].any()
+
+
+def test_a_seat_simulation_with_tables_follows_the_exact_one_on_its_steps(rhythm):
+    options = TrunkOptions(kp=0.5, kv=0.3, reflex_delay=0.03, stiffness=150.0, feedforward=np.full(rhythm.n_muscles, 0.03),
+                           pelvis="seat", seat_stiffness=4e4, seat_damping=600.0)
+    exact = simulate(rhythm, duration=3.0, bandwidth=2.0, options=dataclasses.replace(options, tables=False), log=())
+    tabulated = simulate(rhythm, duration=3.0, bandwidth=2.0, options=options, log=(), steps=exact.step_times)
+    pelvis = exact.q[:, 0] - exact.platform[:, 0]
+    assert np.ptp(pelvis) > 1e-4, "the seat must let the pelvis lag the platform"
+    assert np.abs(tabulated.q[:, 0] - exact.q[:, 0]).max() < 1e-8
+    assert np.abs(np.degrees(tabulated.lumbar_rotation - exact.lumbar_rotation)).max() < 1e-6
+
+
 def test_a_model_with_more_than_one_coordinate_has_no_table():
     assert coordinate_table(td.load_model("sagittal", pelvis_free=False)) is None
 
@@ -91,9 +123,27 @@ def test_copies_may_differ_in_every_variant_field(rhythm):
         simulate_copies(rhythm, [{}, {"reflex_delay": 0.0}], own.step_times, duration=2.0, perturbation=signal, options=options)
 
 
+def test_copies_on_the_seat_may_differ_in_its_stiffness_and_damping(rhythm):
+    options = TrunkOptions(reflex_delay=0.02, stiffness=150.0, feedforward=np.full(rhythm.n_muscles, 0.03), kp=0.5, kv=0.3,
+                           pelvis="seat", seat_stiffness=4e4, seat_damping=600.0)
+    variants = [{}, {"seat_stiffness": 1.5e4}, {"seat_damping": 200.0}, {"kp": 1.0, "seat_stiffness": 1e5}]
+    signal = make_multisine(f_max=2.0, seed=0, fade_shape="quintic")
+    own = simulate(rhythm, duration=2.0, perturbation=signal, options=options, log=())
+    copies = simulate_copies(rhythm, variants, own.step_times, duration=2.0, perturbation=signal, options=options, log=())
+    for variant, copy in zip(variants, copies):
+        alone = simulate(rhythm, duration=2.0, perturbation=signal, options=dataclasses.replace(options, **variant),
+                         steps=own.step_times, log=())
+        assert copy.coordinates == ["pelvis_tx", "lumbar_FE"]
+        assert np.abs(copy.q - alone.q).max() < 1e-12, variant
+        if variant:
+            assert np.abs(copy.q[:, 0] - copies[0].q[:, 0]).max() > 1e-6, f"{variant} must matter"
+
+
 def test_copies_need_a_model_and_options_they_support(rhythm):
     steps = np.linspace(0.0, 1.0, 11)
     with pytest.raises(CopiesUnsupported, match="rigid tendons"):
         simulate_copies(rhythm, [{"kp": 0.1, "kv": 0.1}] * 2, steps, duration=1.0, options=TrunkOptions(tendon="compliant"))
+    with pytest.raises(CopiesUnsupported, match="the prescribed pelvis, the seat or none"):
+        simulate_copies(rhythm, [{"kp": 0.1, "kv": 0.1}] * 2, steps, duration=1.0, options=TrunkOptions(pelvis="force"))
     with pytest.raises(CopiesUnsupported, match="one coordinate"):
         simulate_copies(td.load_model("sagittal"), [{"kp": 0.1, "kv": 0.1}] * 2, steps, duration=1.0)

@@ -132,7 +132,8 @@ def plant_model_for(model, pelvis: str):
 
 
 # What copies of the model in one diagram may differ in (`build_trunk_diagram`'s `variants`): TrunkOptions fields.
-VARIANT_FIELDS = ("kp", "kv", "stiffness", "damping", "cubic", "strength_scale", "activation_scale", "reflex_delay")
+VARIANT_FIELDS = ("kp", "kv", "stiffness", "damping", "cubic", "strength_scale", "activation_scale", "reflex_delay",
+                  "seat_stiffness", "seat_damping")
 
 
 def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation=None, log_period: float = 0.0,
@@ -143,10 +144,10 @@ def build_trunk_diagram(model, options: TrunkOptions | None = None, perturbation
     step (``log_period=0``) or at a fixed period; fits log only what they use (each log is evaluated every step).
     `variants` (a list of dicts of `VARIANT_FIELDS`, e.g. {"kp": ..., "kv": ...} as `TrunkOptions.kp`, the
     others as in `options`): one copy of the model per variant, all in one diagram on one integrator (a
-    TabulatedPlant: the rhythm on the prescribed pelvis, rigid tendons, the stretch reflex as the only feedback),
-    so that a finite-difference Jacobian's points share each evaluation's fixed cost; the copies differ only in
-    those fields (reflex gains, bushing stiffness, damping and stiffening, muscle strength, activation time
-    scale, reflex delay: all delays positive or none)."""
+    TabulatedPlant: the rhythm on the prescribed pelvis or the seat, rigid tendons, the stretch reflex as the only
+    feedback), so that a finite-difference Jacobian's points share each evaluation's fixed cost; the copies differ
+    only in those fields (reflex gains, bushing stiffness, damping and stiffening, muscle strength, activation time
+    scale, reflex delay: all delays positive or none; seat stiffness and damping)."""
     unknown = set(log) - set(MUSCLE_LOGS)
     if unknown:
         raise ValueError(f"unknown muscle logs {sorted(unknown)}; choose from {MUSCLE_LOGS}")
@@ -246,8 +247,9 @@ def _assemble(builder, base, opts: TrunkOptions, perturbation, pelvis_mode: str,
         )
         forces.append(pert.GetOutputPort("generalized_force"))
     elif pelvis_mode == "seat":
+        pelvis = base.coordinates.index("pelvis_tx") + base.plant.num_positions() * np.arange(copies)
         pert = builder.AddNamedSystem("perturbation", SeatCompliance(
-            perturbation, opts.seat_stiffness, opts.seat_damping, base.coordinates.index("pelvis_tx"), nq, nv))
+            perturbation, [o.seat_stiffness for o in each], [o.seat_damping for o in each], pelvis, nq, nv))
         builder.Connect(plant.get_state_output_port(), pert.GetInputPort("plant_state"))
         forces.append(pert.GetOutputPort("generalized_force"))
     adder = builder.AddNamedSystem("generalized_force_sum", Adder(len(forces), nv))
@@ -331,8 +333,8 @@ def copies_unsupported(model, options: TrunkOptions) -> list[str]:
 
 def _unsupported(opts: TrunkOptions, pelvis_mode: str, table) -> list[str]:
     return [what for what, bad in [
-        ("a model with one coordinate (the rhythm on the prescribed pelvis) and its table (TrunkOptions.tables)", table is None),
-        ("the prescribed pelvis or none", pelvis_mode not in ("prescribed", "none")), ("rigid tendons", opts.tendon != "rigid"),
+        ("a model with one coordinate (the rhythm, on the prescribed pelvis or the seat) and its table (TrunkOptions.tables)", table is None),
+        ("the prescribed pelvis, the seat or none", pelvis_mode not in ("prescribed", "seat", "none")), ("rigid tendons", opts.tendon != "rigid"),
         ("no Golgi tendon or trunk-in-space feedback", bool(opts.gto_gain or opts.vestibular_gain)),
         ("no muscle mask and no short-range stiffness", opts.muscle_mask is not None or opts.srs is not None)] if bad]
 

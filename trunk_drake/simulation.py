@@ -263,8 +263,8 @@ def simulate_copies(model, variants: list[dict], steps: np.ndarray, duration: fl
                     log: tuple[str, ...] = MUSCLE_LOGS) -> list[SimulationResult]:
     """`simulate` once per variant of `options` (a dict of `diagram.VARIANT_FIELDS`: reflex gains {"kp": ..., "kv": ...}
     as `TrunkOptions.kp`, bushing stiffness, damping and stiffening, strength scale, activation time scale, reflex
-    delay), all on the replayed step sequence `steps`, as copies of the model in one diagram (`build_trunk_diagram`'s
-    `variants`: the rhythm on the prescribed pelvis, rigid tendons, no other feedback). Each result equals its own
+    delay, seat stiffness and damping), all on the replayed step sequence `steps`, as copies of the model in one diagram (`build_trunk_diagram`'s
+    `variants`: the rhythm on the prescribed pelvis or the seat, rigid tendons, no other feedback). Each result equals its own
     `simulate` on `steps` to round-off, at a fraction of the cost: the copies share every evaluation's fixed cost
     (the points of a finite-difference Jacobian). A copy that diverges or leaves the tabulated range fails them all
     (SimulationError)."""

@@ -114,8 +114,8 @@ class CoupledPlant(LeafSystem):
         return self._scratch
 
     def use_table(self, table) -> None:
-        """Take M, gravity and the bias term from `table` (a `model.tables.CoordinateTable` of this plant) where
-        it covers q; None: always from the full plant."""
+        """Take M, gravity and the bias term from `table` (a `model.tables.CoordinateTable` of this plant: its one
+        coordinate, or the pelvis slide and it) where it covers q; None: always from the full plant."""
         self._table = table
         self._free_motion = None
 
@@ -144,7 +144,11 @@ class CoupledPlant(LeafSystem):
     def DoCalcTimeDerivatives(self, context, derivatives):
         x = self._state_vector(context).CopyToVector()
         table = self._table
-        if table is not None and table.covers(x[0]):
+        if table is not None and table.slide is not None and table.covers(x[1]):  # the rhythm on the pelvis slide
+            applied = self._applied.Eval(context) if self._applied.HasValue(context) else np.zeros(2)
+            derivatives.get_mutable_vector().SetFromVector(np.concatenate([x[2:], table.accelerations(x[:2], x[2:], applied)]))
+            return
+        if table is not None and table.slide is None and table.covers(x[0]):
             mass, gravity, bias = table.dynamics(x[0])
             applied = self._applied.Eval(context)[0] if self._applied.HasValue(context) else 0.0
             vdot = (gravity - bias * x[1] ** 2 + applied) / mass

@@ -11,6 +11,11 @@ cost a few vector operations instead of the body kinematics, 210 paths and three
   interpolant's own derivative, so muscle work stays the derivative of length (no energy leak);
 * the rigid-body terms by not-a-knot cubic splines of their exact values.
 
+The rhythm on a sliding pelvis (``pelvis_tx``, the seat or the thesis' force perturbation) uses the welded
+model's table: the slide translates every body, so the paths, M, g and c of the lumbar coordinate are unchanged; the
+slide's own terms are the total mass, gravity along it (constants, `Slide`) and the coupling ``M J_com^T d`` already
+tabulated, whose slope gives the slide's velocity-product term (`CoordinateTable.accelerations`).
+
 OpenSim 4.5's FunctionBasedPath does the same for muscle paths (fitted polynomials of the coordinates).
 The grid spans the coordinate's range (where the geometry was verified). A wrapping surface that a path
 starts or stops touching gives the exact moment arm a jump, which no cubic follows: an interval whose
@@ -23,9 +28,10 @@ from __future__ import annotations
 
 import hashlib
 import pickle
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
+from pydrake.multibody.tree import JacobianWrtVariable
 from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
 from trunk_drake.model.paths import PathState
@@ -33,6 +39,17 @@ from trunk_drake.model.paths import PathState
 STEP = np.radians(0.125)  # grid spacing (rad)
 TOLERANCE = {"length": 1e-8, "moment_arm": 1e-6}  # m: an interval's largest error at its midpoint, else left out
 _CACHE: dict = {}  # (hash of the spec, load options) -> table: built once per process and model
+
+
+@dataclass(frozen=True)
+class Slide:
+    """The pelvis slide under a tabulated coordinate (coordinates ``pelvis_tx`` then it): its world direction,
+    the total mass it carries and gravity's force along it. Kinetic energy ``m x'^2/2 + b(q) x' q' + M(q) q'^2/2``
+    with ``b(q) = M J_com^T d``, so ``m x'' + b q'' + b' q'^2 = f_x + gravity`` and ``b x'' + M q'' + c q'^2 = g + tau``."""
+
+    direction: np.ndarray
+    mass: float
+    gravity: float
 
 
 @dataclass(frozen=True)
@@ -46,6 +63,12 @@ class CoordinateTable:
     slopes: np.ndarray  # (3, intervals, n): derivative coefficients of the length columns
     n_muscles: int
     exact: np.ndarray  # (intervals,) bool: intervals left out (a moment-arm jump inside)
+    slide: Slide | None = None  # the model's pelvis slide (its first coordinate), or None (the tabulated one only)
+
+    @property
+    def width(self) -> int:
+        """Coordinates per copy of the model: the tabulated one last, after the slide if there is one."""
+        return 1 if self.slide is None else 2
 
     @property
     def hi(self) -> float:
@@ -77,18 +100,21 @@ class CoordinateTable:
     def paths(self, q, v=None) -> PathState:
         """Lengths, moment arms and (with v) lengthening velocities at q. For an array q (one value per copy)
         the muscles of copy b are rows b*n ... b*n+n-1, and the moment arms (copies * n, copies) are
-        block-diagonal (copy b's muscles act on its own coordinate only), as one model with `copies` coordinates."""
+        block-diagonal (copy b's muscles act on its own coordinate only), as one model with `copies` coordinates. With a
+        `slide` each copy has two coordinates (the slide first), and the slide's moment arms are zero."""
         n = self.n_muscles
         k, t = self._locate(q)
         lengths = self._cubic(self.coefficients, k, t, slice(0, n))
         s = self.slopes[:, k]
         slope = (s[0] * t + s[1]) * t + s[2]  # dL/dq: (n,) or (copies, n)
+        w = self.width
         if np.ndim(q) == 0:
-            return PathState(lengths=lengths, moment_arms=-slope[:, None], velocities=None if v is None else slope * v)
+            arms = -slope[:, None] if w == 1 else np.column_stack([np.zeros(n), -slope])
+            return PathState(lengths=lengths, moment_arms=arms, velocities=None if v is None else slope * v)
         copies = q.size
-        arms = np.zeros((copies, n, copies))
-        arms[np.arange(copies), :, np.arange(copies)] = -slope
-        return PathState(lengths=lengths.reshape(-1), moment_arms=arms.reshape(copies * n, copies),
+        arms = np.zeros((copies, n, copies * w))
+        arms[np.arange(copies), :, w * np.arange(copies) + w - 1] = -slope
+        return PathState(lengths=lengths.reshape(-1), moment_arms=arms.reshape(copies * n, copies * w),
                          velocities=None if v is None else (slope * v[:, None]).reshape(-1))
 
     def dynamics(self, q):
@@ -100,18 +126,53 @@ class CoordinateTable:
         """``M J_com^T d`` at q (a number, or one per copy; `TrunkModel.mass_weighted_com_jacobian`)."""
         return self._values(q, slice(self.n_muscles + 3, None)) @ direction
 
+    def accelerations(self, q, v, applied) -> np.ndarray:
+        """Generalized accelerations of copies of the model (arrays of `width` coordinates per copy, in turn) under
+        the generalized forces `applied`: ``M q'' + c q'^2 = g + tau``, with a `slide` the 2x2 system of `Slide`."""
+        w = self.width
+        angle, rate, torque = q[w - 1::w], v[w - 1::w], applied[w - 1::w]
+        k, t = self._locate(angle)
+        mass, gravity, bias = self._values(angle, slice(self.n_muscles, self.n_muscles + 3)).T
+        rotation = gravity - bias * rate**2 + torque
+        if self.slide is None:
+            return rotation / mass
+        s, load = self.slide, slice(self.n_muscles + 3, None)
+        coupling = self._cubic(self.coefficients, k, t, load) @ s.direction
+        c = self.coefficients[:3, k, load]
+        slope = ((3 * c[0] * t + 2 * c[1]) * t + c[2]) @ s.direction  # d(M J_com^T d)/dq
+        translation = applied[0::2] + s.gravity - slope * rate**2
+        det = s.mass * mass - coupling**2
+        out = np.empty(q.size)
+        out[0::2] = (mass * translation - coupling * rotation) / det
+        out[1::2] = (s.mass * rotation - coupling * translation) / det
+        return out
+
 
 def coordinate_table(model) -> CoordinateTable | None:
     """The table of `model` (built once per spec and configuration), or None where it has none: more than
-    one coordinate, or paths without compiled kinematics (OpenSim files)."""
-    if model.plant.num_positions() != 1 or model._kinematics is None:
+    one coordinate (besides the pelvis slide: then the welded model's table with its `Slide`), or paths without
+    compiled kinematics (OpenSim files)."""
+    sliding = model.coordinates[:1] == ["pelvis_tx"]
+    if model.plant.num_positions() != 1 + sliding or model._kinematics is None:
         return None
     key = (hashlib.sha256(pickle.dumps(model.spec)).hexdigest(), *model.load_options.values())
     if key not in _CACHE:
         if len(_CACHE) >= 8:
             _CACHE.pop(next(iter(_CACHE)))
-        _CACHE[key] = _build(model)
+        _CACHE[key] = replace(coordinate_table(model.variant(pelvis_free=False)), slide=_slide(model)) if sliding else _build(model)
     return _CACHE[key]
+
+
+def _slide(model) -> Slide:
+    """The pelvis slide of `model` (coordinate 0): the pelvis' velocity per unit slide rate, and the slide's constant
+    mass-matrix entry and gravity force."""
+    plant = model.plant
+    context = plant.CreateDefaultContext()
+    pelvis = plant.GetBodyByName(model.spec.pelvis).body_frame()
+    jacobian = plant.CalcJacobianTranslationalVelocity(context, JacobianWrtVariable.kV, pelvis, np.zeros(3),
+                                                       plant.world_frame(), plant.world_frame())
+    return Slide(jacobian[:, 0].copy(), float(plant.CalcMassMatrix(context)[0, 0]),
+                 float(plant.CalcGravityGeneralizedForces(context)[0]))
 
 
 def _build(model) -> CoordinateTable:

@@ -57,15 +57,17 @@ class TrunkInSpaceFeedback(LeafSystem):
 class SeatCompliance(LeafSystem):
     """Pelvis-seat contact as a spring-damper: the pelvis no longer follows the platform exactly.
 
-    Generalized force on the pelvis slide k (x_platform - x_pelvis) + c (v_platform - v_pelvis).
+    Generalized force on the pelvis slide k (x_platform - x_pelvis) + c (v_platform - v_pelvis). With copies of
+    the model, `stiffness`, `damping` and `pelvis_index` hold one value per copy.
     Input ``plant_state``; output ``generalized_force`` (n_v).
     """
 
-    def __init__(self, signal, stiffness: float, damping: float, pelvis_index: int, nq: int, nv: int):
+    def __init__(self, signal, stiffness, damping, pelvis_index, nq: int, nv: int):
         super().__init__()
-        if stiffness <= 0 or damping < 0:
+        self._k, self._c = np.atleast_1d(np.asarray(stiffness, float)), np.atleast_1d(np.asarray(damping, float))
+        if np.any(self._k <= 0) or np.any(self._c < 0):
             raise ValueError(f"seat stiffness must be > 0 and damping >= 0, got {stiffness}, {damping}")
-        self._signal, self._k, self._c, self._i, self._nq = signal, float(stiffness), float(damping), pelvis_index, nq
+        self._signal, self._i, self._nq = signal, np.atleast_1d(pelvis_index), nq
         self._nv = nv
         self.DeclareVectorInputPort("plant_state", nq + nv)
         self.DeclareVectorOutputPort("generalized_force", nv, weak(self._calc_force))

@@ -43,8 +43,10 @@ class MusclePathSystem(LeafSystem):
     def _compute(self, context, x) -> PathState:
         if not np.isfinite(x.sum()):  # any NaN or inf; Drake would abort on non-finite positions
             raise RuntimeError(f"non-finite plant state at t={context.get_time():.6g} s: {x}")
+        table, nq = self._table, self._nq
         if self._copies > 1:  # TabulatedPlant checks the range
-            return self._table.paths(x[: self._nq], x[self._nq:])
-        if self._table is not None and self._table.covers(x[0]):
-            return self._table.paths(x[0], x[1])
+            w = table.width
+            return table.paths(x[w - 1:nq:w], x[nq + w - 1::w])
+        if table is not None and table.covers(x[nq - 1]):  # the tabulated coordinate is the last (after a pelvis slide)
+            return table.paths(x[nq - 1], x[-1])
         return self._model.path_state_from_q(x[: self._nq], x[self._nq:])
