@@ -50,6 +50,9 @@ class FakeFitter:
     def concurrently(self, calls):
         return [call() for call in calls]
 
+    def outputs_near(self, x, effects, points, each):
+        return self.outputs_of(points, each)
+
 
 @pytest.mark.parametrize("dofs", ["sagittal", "rhythm"])
 def test_linearisation_matches_a_small_amplitude_simulation(dofs):
@@ -380,8 +383,8 @@ def test_a_point_of_a_wider_gain_space_at_zero_along_the_new_directions_is_the_s
 
 def test_a_refits_points_that_differ_in_variant_fields_run_as_copies():
     """On replayed steps the points whose options differ only in `VARIANT_FIELDS` (the gains, and effects that set
-    only those: a delay, damping, strength) run as one group per trial; an effect that copies cannot hold (seat
-    compliance), a delay of zero beside positive ones, and points on their own steps run one by one."""
+    only those: a delay, damping, strength) run as one group per trial; an effect that changes the diagram (seat
+    compliance: a sliding pelvis), a delay of zero beside positive ones, and points on their own steps run one by one."""
     from types import SimpleNamespace
 
     from trunk_drake.gap.catalogue import effect
@@ -405,6 +408,51 @@ def test_a_refits_points_that_differ_in_variant_fields_run_as_copies():
     plan = fitter._plan([no_delay.options_for(*p) for p in [(np.zeros(2), ()), (np.array([0.0, 0.0, 0.03]), (delay,))]], steps)
     assert sorted(group for group, _ in plan) == [[0]] * 3 + [[1]] * 3
     assert len(fitter._plan(options[:4], [None] * 3)) == 12  # each on its own steps
+
+
+def test_the_checks_replay_the_current_models_steps_as_copies_where_the_diagram_allows():
+    """`TimeDomainFitter.outputs_near`: the current model runs on its own steps; points whose diagram is its own up to
+    `VARIANT_FIELDS` and whose delay is no shorter replay those steps as one group per trial; a shorter delay (the
+    steps follow the shortest delay) and another diagram (a sliding pelvis) run on their own steps."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.refit import TimeDomainFitter
+    from trunk_drake.gap.space import SearchSpace
+
+    model = td.load_model("rhythm")
+    own_steps = np.linspace(0.0, 1.0, 7)
+
+    class Pool:  # records the jobs; every run gives zero outputs and its steps
+        workers, parallel = 2, True
+
+        def __init__(self):
+            self.model, self.jobs = model, []
+
+        def map(self, fn, jobs):
+            self.jobs += jobs
+            runs = []
+            for options, _, _, steps, _ in jobs:
+                one = (np.zeros((4, 1)), None, own_steps if steps is None else steps)
+                runs.append([one] * len(options) if isinstance(options, list) else one)
+            return runs
+
+    space = SearchSpace.around(model, nominal_options())
+    space = SearchSpace(space.options, space.layout, np.eye(len(space.layout.names))[:, :2])
+    pool = Pool()
+    fitter = TimeDomainFitter(pool, space, [None] * 3, None, ())
+    delay, damping, seat = effect("reflex_delay"), effect("extra_damping"), effect("seat_compliance")
+    x = np.array([0.0, 0.0, 0.03])
+    points = [(np.array([0.0, 0.1, 0.05]), (delay,)), (np.array([0.0, 0.0, 0.01]), (delay,)),
+              (np.array([0.0, 0.0, 0.03, 4.0]), (delay, damping)), (np.array([0.0, 0.0, 0.03, 5.0, 2.5]), (delay, seat))]
+    outputs = fitter.outputs_near(x, (delay,), [p for p, _ in points], [e for _, e in points])
+    assert len(outputs) == 4 and all(o is not None for o in outputs)
+    own, replayed, alone = pool.jobs[:3], pool.jobs[3:6], pool.jobs[6:]
+    assert all(not isinstance(j[0], list) and j[3] is None for j in own)  # the current model on its own steps
+    assert all(len(j[0]) == 2 and j[3] is own_steps for j in replayed)  # the longer delay and the damping: copies
+    assert [j[0][0].reflex_delay for j in replayed] == [0.05] * 3 and [j[0][1].damping for j in replayed] != [space.options.damping] * 3
+    assert len(alone) == 6 and all(not isinstance(j[0], list) and j[3] is None for j in alone)
+    assert sorted({(j[0].reflex_delay, j[0].pelvis) for j in alone}) == [(0.01, "prescribed"), (0.03, "seat")]
 
 
 def test_a_refit_step_simulates_the_training_half_only_and_gets_its_outputs_exactly():

@@ -82,6 +82,12 @@ def simulation_job(model, job):
         return err
 
 
+def _diagram(options: TrunkOptions) -> tuple:
+    """What `options` set beyond `VARIANT_FIELDS`, and whether the reflex is delayed: options alike in it build
+    copies of one diagram (`diagram.build_trunk_diagram`'s `variants`; all delayed or none)."""
+    return pickle.dumps(dataclasses.replace(options, **{f: None for f in VARIANT_FIELDS})), options.reflex_delay > 0
+
+
 class TimeDomainFitter:
     """Refit and score models with full nonlinear simulations (first halves train, second test) on
     the worker pool `simulator`: secant Levenberg-Marquardt over the `free` coordinates of x (others
@@ -139,6 +145,24 @@ class TimeDomainFitter:
             self.cache[k] = (None, None) if diverged else ([c[0] for c in chunk], [c[2] for c in chunk])
         return [self.cache[k][0] for k in keys]
 
+    def outputs_near(self, x, effects, points, each) -> list:
+        """`outputs_of` the `points` (with `each`'s effects) near the model (x, `effects`): where a point's diagram is that
+        model's up to `VARIANT_FIELDS` (and its reflex delay no shorter: the steps follow the shortest delay), on the
+        step sequences of the model's own run, as copies of the model; every other point on its own steps."""
+        base = self.space.options_for(x, effects)
+        own = self.key(x, effects)
+        near = self.outputs_of([x], effects)[0] is not None
+        options = [self.space.options_for(p, fx) for p, fx in zip(points, each)]
+        replay = [near and _diagram(o) == _diagram(base) and o.reflex_delay >= base.reflex_delay for o in options]
+        out = [None] * len(points)
+        for flag in (True, False):
+            chosen = [i for i, r in enumerate(replay) if r == flag]
+            if chosen:
+                found = self.outputs_of([points[i] for i in chosen], [each[i] for i in chosen], own if flag else None)
+                for i, o in zip(chosen, found):
+                    out[i] = o
+        return out
+
     def _plan(self, options: list[TrunkOptions], steps) -> list[tuple[list[int], int]]:
         """Worker jobs for the points simulated with `options` x trials: (indices of points, trial). On replayed
         steps the points whose options differ only in `VARIANT_FIELDS` (gains, and effects that only set those
@@ -147,8 +171,7 @@ class TimeDomainFitter:
         workers = self.simulator.workers if self.simulator.parallel else 1
         alike: dict = {}
         for i, o in enumerate(options):
-            rest = dataclasses.replace(o, **{f: None for f in VARIANT_FIELDS})
-            alike.setdefault((pickle.dumps(rest), o.reflex_delay > 0), []).append(i)  # copies: all delayed or none
+            alike.setdefault(_diagram(o), []).append(i)
         return [([members[j] for j in group], k) for members in alike.values()
                 for group, k in point_jobs(members, len(self.trials), steps, workers,
                                            not copies_unsupported(self.simulator.model, options[members[0]]))]

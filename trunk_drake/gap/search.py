@@ -263,7 +263,9 @@ class _Search:
         (bushing_stiffness_scale1.6: linear dBIC -10 on top of 3 gain directions, the truth worth 48; not checked).
         On all gain directions (`all_gains`) every row is simulated, also at `START_FRACTIONS` of the effect's range
         with the polished gains: on golgi_feedback_gain0.3's polished gains the Golgi feedback screened at linear
-        dBIC 2.1, seventh of 11, and refined from its check at 182."""
+        dBIC 2.1, seventh of 11, and refined from its check at 182. Points whose diagram differs from `current`'s only
+        in values copies may differ in replay `current`'s step sequences as copies of the model
+        (`TimeDomainFitter.outputs_near`)."""
         wide = self.settings.gains_first or self.all_gains
         checked = [r for r in rows if "linear_fit" in r and (wide or r["linear_delta_bic"] > self.settings.threshold)]
         checked = checked if self.all_gains else checked[:self.settings.check]
@@ -278,7 +280,7 @@ class _Search:
                 at += [np.concatenate([current.x, lo[n:] + f * (hi[n:] - lo[n:])]) for f in START_FRACTIONS]
             points += at
             effects += [held] * len(at)
-        outputs = self.fitter.outputs_of(points, effects)
+        outputs = self.fitter.outputs_near(current.x, self.effects(current.effects), points, effects)
         per = len(points) // max(len(checked), 1)
         for k, row in enumerate(checked):
             best = min(range(per * k, per * k + per), key=lambda i: self.fitter.chi2(outputs[i], "train"))
