@@ -51,7 +51,7 @@ class FakeFitter:
         return [call() for call in calls]
 
     def outputs_near(self, x, effects, points, each):
-        return self.outputs_of(points, each)
+        return self.outputs_of(points, each), [None] * len(points)
 
 
 @pytest.mark.parametrize("dofs", ["sagittal", "rhythm"])
@@ -330,7 +330,7 @@ def test_with_gains_first_an_added_effect_is_refitted_from_several_magnitudes():
         def chi2(self, x, which):
             return chi2(x) + (0.0 if which == "train" else 50.0)
 
-        def fit(self, effects, x0, free, max_iterations=2, space=None):  # to the bottom of the start's basin
+        def fit(self, effects, x0, free, max_iterations=2, space=None, on=None):  # to the bottom of the start's basin
             self.starts.append(np.asarray(x0, float))
             x = np.array([x0[0], 16.0 if x0[1] > 8.5 else 1.0])
             return Fit(("extra_damping",), x, chi2(x), chi2(x) + 50.0, {"extra_damping": {"damping": x[1]}}, [x])
@@ -445,8 +445,9 @@ def test_the_checks_replay_the_current_models_steps_as_copies_where_the_diagram_
     x = np.array([0.0, 0.0, 0.03])
     points = [(np.array([0.0, 0.1, 0.05]), (delay,)), (np.array([0.0, 0.0, 0.01]), (delay,)),
               (np.array([0.0, 0.0, 0.03, 4.0]), (delay, damping)), (np.array([0.0, 0.0, 0.03, 5.0, 2.5]), (delay, seat))]
-    outputs = fitter.outputs_near(x, (delay,), [p for p, _ in points], [e for _, e in points])
+    outputs, runs = fitter.outputs_near(x, (delay,), [p for p, _ in points], [e for _, e in points])
     assert len(outputs) == 4 and all(o is not None for o in outputs)
+    assert runs == [fitter.key(x, (delay,)), None, fitter.key(x, (delay,)), None]  # where a refit from each replays
     own, replayed, alone = pool.jobs[:3], pool.jobs[3:6], pool.jobs[6:]
     assert all(not isinstance(j[0], list) and j[3] is None for j in own)  # the current model on its own steps
     assert all(len(j[0]) == 2 and j[3] is own_steps for j in replayed)  # the longer delay and the damping: copies
@@ -492,7 +493,7 @@ def test_the_polish_refits_every_gain_direction_and_drops_an_effect_the_gains_th
         def __init__(self):
             self.calls = []
 
-        def fit(self, effects, x0, free, max_iterations=2, space=None):
+        def fit(self, effects, x0, free, max_iterations=2, space=None, on=None):
             names = tuple(e.name for e in effects)
             self.calls.append((names, np.asarray(x0, float), space.rank, max_iterations))
             chi2 = {("reflex_delay", "upper_body_mass"): 1000.0, ("reflex_delay",): 1400.0, ("upper_body_mass",): 1005.0,
@@ -535,7 +536,7 @@ def test_after_the_polish_the_selection_goes_on_on_every_gain_direction():
         def __init__(self):
             self.calls = []
 
-        def fit(self, effects, x0, free, max_iterations=2, space=None):
+        def fit(self, effects, x0, free, max_iterations=2, space=None, on=None):
             names = tuple(e.name for e in effects)
             self.calls.append((names, list(free), max_iterations))
             chi2 = {("reflex_delay", "upper_body_mass"): 1000.0, ("reflex_delay",): 1400.0, ("upper_body_mass",): 1300.0}[names]
@@ -575,7 +576,7 @@ def test_a_partner_masked_by_the_chosen_effect_is_refitted_with_it_from_its_own_
         def __init__(self, chi2):
             self.chi2, self.calls = chi2, []
 
-        def fit(self, effects, x0, free, max_iterations=2, space=None):
+        def fit(self, effects, x0, free, max_iterations=2, space=None, on=None):
             names = tuple(e.name for e in effects)
             self.calls.append((names, np.asarray(x0, float).tolist()))
             return Fit(names, np.asarray(x0, float), self.chi2[names] - 100.0, self.chi2[names], {}, outputs=[])

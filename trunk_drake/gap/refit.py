@@ -145,10 +145,11 @@ class TimeDomainFitter:
             self.cache[k] = (None, None) if diverged else ([c[0] for c in chunk], [c[2] for c in chunk])
         return [self.cache[k][0] for k in keys]
 
-    def outputs_near(self, x, effects, points, each) -> list:
+    def outputs_near(self, x, effects, points, each) -> tuple[list, list]:
         """`outputs_of` the `points` (with `each`'s effects) near the model (x, `effects`): where a point's diagram is that
         model's up to `VARIANT_FIELDS` (and its reflex delay no shorter: the steps follow the shortest delay), on the
-        step sequences of the model's own run, as copies of the model; every other point on its own steps."""
+        step sequences of the model's own run, as copies of the model; every other point on its own steps. Also the
+        key of the run each point replayed (None: its own steps), for a refit from it (`fit`'s `on`)."""
         base = self.space.options_for(x, effects)
         own = self.key(x, effects)
         near = self.outputs_of([x], effects)[0] is not None
@@ -161,7 +162,7 @@ class TimeDomainFitter:
                 found = self.outputs_of([points[i] for i in chosen], [each[i] for i in chosen], own if flag else None)
                 for i, o in zip(chosen, found):
                     out[i] = o
-        return out
+        return out, [own if r else None for r in replay]
 
     def _plan(self, options: list[TrunkOptions], steps) -> list[tuple[list[int], int]]:
         """Worker jobs for the points simulated with `options` x trials: (indices of points, trial). On replayed
@@ -195,8 +196,9 @@ class TimeDomainFitter:
             parts.append(((r - r.mean(axis=0)) / self.noise).ravel())
         return np.concatenate(parts)
 
-    def fit(self, effects, x0, free, max_iterations: int = 2, space: SearchSpace | None = None) -> Fit:
-        """`effects` fitted from x0 on the coordinates `free` of x (in `space`, default the fitter's)."""
+    def fit(self, effects, x0, free, max_iterations: int = 2, space: SearchSpace | None = None, on=None) -> Fit:
+        """`effects` fitted from x0 on the coordinates `free` of x (in `space`, default the fitter's), every point on the
+        step sequences of x0's own run, or of the run keyed `on` where x0 was simulated on them (`outputs_near`)."""
         space = space or self.space
         lo, hi, _ = space.bounds(effects)
         x_full = np.clip(np.asarray(x0, float), lo, hi)
@@ -207,9 +209,10 @@ class TimeDomainFitter:
             x[free] = z
             return x
 
-        own = self.key(x_full, effects, space=space)
-        self.outputs_of([x_full], effects, space=space)
-        on = own if self.cache[own][0] is not None else None  # a diverging start: each point on its own steps
+        if on is None or self.outputs_of([x_full], effects, on, space)[0] is None:
+            own = self.key(x_full, effects, space=space)
+            self.outputs_of([x_full], effects, space=space)
+            on = own if self.cache[own][0] is not None else None  # a diverging start: each point on its own steps
 
         def fun(z):  # the training halves only: the simulations stop there (the fitted point is run whole below)
             return self.residual(self.outputs_of([expand(z)], effects, on, space, train_only=True)[0])

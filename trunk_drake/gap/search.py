@@ -280,11 +280,11 @@ class _Search:
                 at += [np.concatenate([current.x, lo[n:] + f * (hi[n:] - lo[n:])]) for f in START_FRACTIONS]
             points += at
             effects += [held] * len(at)
-        outputs = self.fitter.outputs_near(current.x, self.effects(current.effects), points, effects)
+        outputs, runs = self.fitter.outputs_near(current.x, self.effects(current.effects), points, effects)
         per = len(points) // max(len(checked), 1)
         for k, row in enumerate(checked):
             best = min(range(per * k, per * k + per), key=lambda i: self.fitter.chi2(outputs[i], "train"))
-            row["linear_fit"] = dataclasses.replace(row["linear_fit"], x=points[best])
+            row["linear_fit"], row["on"] = dataclasses.replace(row["linear_fit"], x=points[best]), runs[best]
             row["checked_values"] = self.space.values(points[best], effects[best])[-1]
             row["checked_delta_bic"] = self.dbic(current, dataclasses.replace(
                 row["linear_fit"], heldout_chi2=self.fitter.chi2(outputs[best], "test")), self.candidates[row["effect"]])
@@ -314,8 +314,10 @@ class _Search:
         calls = []  # every row's refits from each of its starts, run concurrently
         for row in chosen:
             held = self.effects(current.effects) + (self.candidates[row["effect"]],)
-            calls += [(row["effect"], lambda held=held, x0=x0: self.fit_added(current, held, x0))
-                      for x0 in self.starts(current, held, row["linear_fit"].x)]
+            starts = self.starts(current, held, row["linear_fit"].x)
+            runs = [row.get("on")] + [None] * (len(starts) - 1)  # the checked point: on the steps the check ran it on
+            calls += [(row["effect"], lambda held=held, x0=x0, on=on: self.fit_added(current, held, x0, on))
+                      for x0, on in zip(starts, runs)]
         refits = self.fitter.concurrently([call for _, call in calls])
         for row in chosen:
             row.pop("linear_fit")
@@ -330,14 +332,16 @@ class _Search:
             self.say(f"{e.name}: {row['status']}" + (f", dBIC {row['delta_bic']:.1f} with {row['values']}" if "delta_bic" in row else ""))
         for row in rows:
             row.pop("linear_fit", None)
+            row.pop("on", None)
         return fits
 
-    def fit_added(self, current: Fit, held, x0: np.ndarray) -> Fit:
-        """The effects `held` (`current`'s and an added one, last) refitted from x0: the added effect and the gains
-        (`added`); on all gain directions every coordinate, in rounds like the polish."""
+    def fit_added(self, current: Fit, held, x0: np.ndarray, on=None) -> Fit:
+        """The effects `held` (`current`'s and an added one, last) refitted from x0 (on the steps of the run keyed `on`
+        where the check simulated it there): the added effect and the gains (`added`); on all gain directions every
+        coordinate, in rounds like the polish."""
         if self.all_gains:
-            return polish_fit(self.fitter, held, x0, self.space, self.settings.threshold)
-        return self.fitter.fit(held, x0, self.added(current, x0.size))
+            return polish_fit(self.fitter, held, x0, self.space, self.settings.threshold, on=on)
+        return self.fitter.fit(held, x0, self.added(current, x0.size), on=on)
 
     def joint(self, names, x0, space: SearchSpace | None = None) -> Fit:
         """Gains and every effect of `names` refitted together with nonlinear simulations (in `space`, default the
@@ -463,12 +467,12 @@ class _Search:
 
 
 def polish_fit(fitter: TimeDomainFitter, effects, x0, space: SearchSpace, threshold: float, free=None,
-               rounds: int = POLISH_ROUNDS) -> Fit:
+               rounds: int = POLISH_ROUNDS, on=None) -> Fit:
     """`effects` and every coordinate of `space` (or the coordinates `free`) refitted from x0 in rounds of
     `POLISH_ITERATIONS` secant steps, each from where the last stopped, while a round lowers the training chi2 by more
-    than `threshold` (at most `rounds`)."""
+    than `threshold` (at most `rounds`); the first round on the steps of the run keyed `on` (`TimeDomainFitter.fit`)."""
     free = np.arange(x0.size) if free is None else free
-    fit = fitter.fit(effects, x0, free, max_iterations=POLISH_ITERATIONS, space=space)
+    fit = fitter.fit(effects, x0, free, max_iterations=POLISH_ITERATIONS, space=space, on=on)
     for _ in range(rounds - 1):
         if fit.outputs is None:
             break
