@@ -132,7 +132,7 @@ class CoordinateTable:
         w = self.width
         angle, rate, torque = q[w - 1::w], v[w - 1::w], applied[w - 1::w]
         k, t = self._locate(angle)
-        mass, gravity, bias = self._values(angle, slice(self.n_muscles, self.n_muscles + 3)).T
+        mass, gravity, bias = self._cubic(self.coefficients, k, t, slice(self.n_muscles, self.n_muscles + 3)).T
         rotation = gravity - bias * rate**2 + torque
         if self.slide is None:
             return rotation / mass
