@@ -102,6 +102,15 @@ def test_copies_of_the_model_in_one_diagram_give_each_copys_own_simulation(rhyth
     assert np.degrees(np.abs(copies[0].lumbar_rotation - copies[2].lumbar_rotation).max()) > 0.01, "the gains must matter"
 
 
+def _copies_and_alone(model, options, variants, signal):
+    """A 2 s run of `options` on its own steps, `variants` simulated as copies on those steps, and each alone on them."""
+    own = simulate(model, duration=2.0, perturbation=signal, options=options, log=())
+    copies = simulate_copies(model, variants, own.step_times, duration=2.0, perturbation=signal, options=options, log=())
+    alone = [simulate(model, duration=2.0, perturbation=signal, options=dataclasses.replace(options, **variant),
+                      steps=own.step_times, log=()) for variant in variants]
+    return own, copies, alone
+
+
 def test_copies_may_differ_in_every_variant_field(rhythm):
     """Copies whose bushings, strength, activation time scale and reflex delay differ (the gap search's effect
     columns): each equals its own simulation on the same steps, and each field changes the response."""
@@ -109,12 +118,9 @@ def test_copies_may_differ_in_every_variant_field(rhythm):
     variants = [{}, {"stiffness": 300.0}, {"damping": 12.0}, {"cubic": 800.0}, {"strength_scale": 1.4},
                 {"activation_scale": 2.5}, {"reflex_delay": 0.05}, {"kp": 1.0, "reflex_delay": 0.03, "activation_scale": 1.5}]
     signal = make_multisine(f_max=2.0, seed=0, fade_shape="quintic")
-    own = simulate(rhythm, duration=2.0, perturbation=signal, options=options, log=())
-    copies = simulate_copies(rhythm, variants, own.step_times, duration=2.0, perturbation=signal, options=options, log=())
-    for variant, copy in zip(variants, copies):
-        alone = simulate(rhythm, duration=2.0, perturbation=signal, options=dataclasses.replace(options, **variant),
-                         steps=own.step_times, log=())
-        assert np.abs(copy.lumbar_rotation - alone.lumbar_rotation).max() < 1e-12, variant
+    own, copies, alone = _copies_and_alone(rhythm, options, variants, signal)
+    for variant, copy, single in zip(variants, copies, alone):
+        assert np.abs(copy.lumbar_rotation - single.lumbar_rotation).max() < 1e-12, variant
         if variant:
             assert np.degrees(np.abs(copy.lumbar_rotation - copies[0].lumbar_rotation).max()) > 1e-4, f"{variant} must matter"
     with pytest.raises(ValueError, match="may differ in"):
@@ -127,14 +133,10 @@ def test_copies_on_the_seat_may_differ_in_its_stiffness_and_damping(rhythm):
     options = TrunkOptions(reflex_delay=0.02, stiffness=150.0, feedforward=np.full(rhythm.n_muscles, 0.03), kp=0.5, kv=0.3,
                            pelvis="seat", seat_stiffness=4e4, seat_damping=600.0)
     variants = [{}, {"seat_stiffness": 1.5e4}, {"seat_damping": 200.0}, {"kp": 1.0, "seat_stiffness": 1e5}]
-    signal = make_multisine(f_max=2.0, seed=0, fade_shape="quintic")
-    own = simulate(rhythm, duration=2.0, perturbation=signal, options=options, log=())
-    copies = simulate_copies(rhythm, variants, own.step_times, duration=2.0, perturbation=signal, options=options, log=())
-    for variant, copy in zip(variants, copies):
-        alone = simulate(rhythm, duration=2.0, perturbation=signal, options=dataclasses.replace(options, **variant),
-                         steps=own.step_times, log=())
+    _, copies, alone = _copies_and_alone(rhythm, options, variants, make_multisine(f_max=2.0, seed=0, fade_shape="quintic"))
+    for variant, copy, single in zip(variants, copies, alone):
         assert copy.coordinates == ["pelvis_tx", "lumbar_FE"]
-        assert np.abs(copy.q - alone.q).max() < 1e-12, variant
+        assert np.abs(copy.q - single.q).max() < 1e-12, variant
         if variant:
             assert np.abs(copy.q[:, 0] - copies[0].q[:, 0]).max() > 1e-6, f"{variant} must matter"
 

@@ -154,7 +154,8 @@ class TimeDomainFitter:
         own = self.key(x, effects)
         near = self.outputs_of([x], effects)[0] is not None
         options = [self.space.options_for(p, fx) for p, fx in zip(points, each)]
-        replay = [near and _diagram(o) == _diagram(base) and o.reflex_delay >= base.reflex_delay for o in options]
+        same = _diagram(base)
+        replay = [near and _diagram(o) == same and o.reflex_delay >= base.reflex_delay for o in options]
         out = [None] * len(points)
         for flag in (True, False):
             chosen = [i for i, r in enumerate(replay) if r == flag]

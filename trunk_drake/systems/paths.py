@@ -49,4 +49,4 @@ class MusclePathSystem(LeafSystem):
             return table.paths(x[w - 1:nq:w], x[nq + w - 1::w])
         if table is not None and table.covers(x[nq - 1]):  # the tabulated coordinate is the last (after a pelvis slide)
             return table.paths(x[nq - 1], x[-1])
-        return self._model.path_state_from_q(x[: self._nq], x[self._nq:])
+        return self._model.path_state_from_q(x[:nq], x[nq:])
