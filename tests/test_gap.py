@@ -609,6 +609,44 @@ def test_a_partner_masked_by_the_chosen_effect_is_refitted_with_it_from_its_own_
     assert [s["action"] for s in steps] == ["partners"] and steps[0]["best"] == "reflex_delay"
 
 
+def test_a_partner_refit_that_stops_short_is_overtaken_by_the_profile_over_its_parameter():
+    """`_Search.profile`: besides the free refit from the partner's own first-step fit, the partner is held at 1/4 and
+    3/4 of its range while the rest is refitted; the pair is freed from the held point that fits best."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.search import START_FRACTIONS, Settings, _Search
+    from trunk_drake.gap.space import Fit, SearchSpace
+    from trunk_drake.optim.gains import GainLayout
+
+    class Fitter(FakeFitter):  # fits stay where they start; the pair's chi2 has its minimum at a 40 ms delay
+        calls = []
+
+        def fit(self, effects, x0, free, max_iterations=2, space=None, on=None):
+            names, x = tuple(e.name for e in effects), np.asarray(x0, float)
+            self.calls.append((names, x.tolist(), list(free)))
+            chi2 = 1000.0 + 1e6 * (x[-1] - 0.04) ** 2 if names == ("slow_activation", "reflex_delay") else 1400.0
+            return Fit(names, x, chi2 - 100.0, chi2, {n: {"value": v} for n, v in zip(names, x[2:])}, outputs=[])
+
+    layout = GainLayout(("kp.sacrospinalis", "kv.sacrospinalis"))
+    candidates = (effect("slow_activation"), effect("reflex_delay"))
+    screen = SimpleNamespace(trials=[SimpleNamespace(steady_outputs=np.zeros((1000, 1)))])
+    search = _Search(SearchSpace(TrunkOptions(), layout, np.eye(2)), screen, Fitter(), candidates, Settings(),
+                     np.zeros((2, 0)), None)
+    search.all_gains = True
+    final = Fit(("slow_activation",), np.array([0.1, 0.2, 2.8]), 1300.0, 1400.0, {}, outputs=[])
+    fits = search.profile(final, {"reflex_delay": SimpleNamespace(x=np.array([0.3, 0.4, 0.0288]))})
+    delay = effect("reflex_delay").parameters[0]
+    held = [delay.lower + f * (delay.upper - delay.lower) for f in START_FRACTIONS]  # 37.5 and 92.5 ms
+    calls = search.fitter.calls
+    assert (("slow_activation", "reflex_delay"), [0.1, 0.2, 2.8, 0.0288], [0, 1, 2, 3]) in calls  # free, own fit
+    for value in held:  # held: every coordinate but the delay free
+        assert (("slow_activation", "reflex_delay"), [0.1, 0.2, 2.8, value], [0, 1, 2]) in calls
+    assert calls[-1] == (("slow_activation", "reflex_delay"), [0.1, 0.2, 2.8, held[0]], [0, 1, 2, 3])  # freed from 37.5
+    assert fits["reflex_delay"].x[-1] == pytest.approx(held[0])
+    assert fits["reflex_delay"].heldout_chi2 == pytest.approx(1000.0 + 1e6 * 0.0025 ** 2)
+
+
 def test_a_diagnosis_says_its_steps_on_stdout_or_in_a_file(tmp_path, capsys):
     """`diagnose_gap(progress=...)`: nothing, stdout, or a file a benchmark case appends to (to follow with tail -f)."""
     from trunk_drake.gap.diagnose import progress_lines

@@ -104,8 +104,8 @@ def _step(step: dict) -> str:
     if step["action"] == "add":
         values = _values(step["values"])
         against = _against_gains(step)
-        partner = (f"; a partner of {' + '.join(step['partner_of'])}, refitted with it from its own first-step fit"
-                   if step.get("partner_of") else "")
+        partner = (f"; a partner of {' + '.join(step['partner_of'])}, refitted with it from its own first-step fit or "
+                   "a profile over its parameters" if step.get("partner_of") else "")
         return (f"add **{step['effect']}**{on} (dBIC {step['delta_bic']:.1f}{'; ' + against if against else ''}{partner}); "
                 f"joint refit of {model}: {values}")
     if step["action"] == "gains":

@@ -23,7 +23,8 @@ with its effects, each effect dropped again unless it earns its dBIC there. Last
 polished model on every gain direction (`select` with `_Search.all_gains`): a further effect is claimed on its own dBIC
 (no gain direction is left to rival it), every refit in rounds like the polish. Then the partner test
 (`_Search.partners`): an effect chosen can mask another, so each effect that passed alone in the first step is refitted
-together with the final model from its own fit there, and the best pair is claimed on the partner's own dBIC. The
+together with the final model from its own fit there and from a coarse profile over its parameters (`_Search.profile`),
+and the best pair is claimed on the partner's own dBIC. The
 remainder of the final model is tested.
 
 With `Settings.gains_first` the gains are widened that way before any effect is weighed: every candidate is
@@ -381,29 +382,53 @@ class _Search:
         self.adopt(space)
         self.all_gains, self.models = True, {frozenset(fit.effects): fit}
 
+    def profile(self, final: Fit, singles: dict[str, Fit]) -> dict[str, Fit]:
+        """Each of `singles` added to `final` and refitted with it on every coordinate (`polish_fit`) from its own
+        first-step fit, and with its parameters held at `START_FRACTIONS` of their range while the rest is refitted (a
+        coarse profile); where a held point fits the training halves best, the pair is freed from there. A free refit
+        alone can stop short: on reflex_delay_delay0.04+slow_activation_scale2.5, from the delay's first-step 28.8 ms it
+        stopped at 27.5 ms (training chi2 18,682; ten rounds did not move it), while with the delay held at 40 ms the
+        rest reached 17,856 (`analyses/gap_pair_profile.py`). Returns the best refit of each that simulated, by name."""
+        n, threshold = final.x.size, self.settings.threshold
+        calls, keys = [], []
+        for name, single in singles.items():
+            effects = self.effects(final.effects) + (self.candidates[name],)
+            lo, hi, _ = self.space.bounds(effects)
+            own = np.concatenate([final.x, single.x[single.x.size - (lo.size - n):]])
+            calls.append(lambda effects=effects, x0=own: polish_fit(self.fitter, effects, x0, self.space, threshold))
+            calls += [lambda effects=effects, x0=np.concatenate([final.x, lo[n:] + f * (hi[n:] - lo[n:])]):
+                      polish_fit(self.fitter, effects, x0, self.space, threshold, free=np.arange(n)) for f in START_FRACTIONS]
+            keys += [(name, False)] + [(name, True)] * len(START_FRACTIONS)
+        best, held = {}, {}
+        for (name, fixed), fit in zip(keys, self.fitter.concurrently(calls)):
+            if fit.outputs is not None and (name not in best or fit.train_chi2 < best[name].train_chi2):
+                best[name], held[name] = fit, fixed
+        names = [name for name in best if held[name]]
+        freed = self.fitter.concurrently([lambda name=name: polish_fit(
+            self.fitter, self.effects(final.effects) + (self.candidates[name],), best[name].x, self.space, threshold)
+            for name in names])
+        for name, fit in zip(names, freed):
+            self.say(f"partner {name}: best held at {best[name].values[name]} (training chi2 {best[name].train_chi2:.0f}), "
+                     f"freed from there: {fit.train_chi2:.0f}")
+            if fit.outputs is not None and fit.train_chi2 < best[name].train_chi2:
+                best[name] = fit
+        return best
+
     def partners(self, final: Fit, singles: dict[str, Fit], record) -> Fit:
         """A partner for `final`'s effects among `singles` (effects refined alone in the first step that passed there):
-        each added to `final` at its own fitted values and refitted with it along every gain direction (`polish_fit`).
-        An effect can mask its partner: on reflex_delay_delay0.04+slow_activation_scale2.5 slow activation alone took
-        the delay's share (2.81 for 2.5), and the delay, checked and refined on its gains, lost (dBIC -72,618 at 20 ms);
-        refitted together from the delay's own fit (28.8 ms), the pair reached held-out chi2 19,440 against 22,380
-        (truth 18,056). The best pair is claimed when the partner earns its own dBIC against `final`'s effects refitted
-        from the pair's gains without it (or `final`, the better on the training halves: the pair's refit runs further
-        gain iterations too, which alone can gain about the threshold), and then every effect must earn its place
-        (`backward`). Returns the model, `final` where no partner passes."""
-        threshold, pairs, tried = self.settings.threshold, {}, {}
-
-        def pair(name: str, single: Fit) -> Fit:
-            e = self.candidates[name]
-            x0 = np.concatenate([final.x, single.x[single.x.size - len(e.parameters):]])
-            return polish_fit(self.fitter, self.effects(final.effects) + (e,), x0, self.space, threshold)
-
-        fitted = self.fitter.concurrently([lambda n=n, f=f: pair(n, f) for n, f in singles.items()])
-        for name, fit in zip(singles, fitted):
-            e = self.candidates[name]
-            if fit.outputs is not None:
-                pairs[name], tried[name] = fit, self.dbic(final, fit, e)
-                self.say(f"partner {name}: dBIC {tried[name]:.1f} with {fit.values}")
+        each added to `final` and refitted with it along every gain direction (`polish_fit`) from the best of a profile
+        over its parameters (`profile`). An effect can mask its partner: on reflex_delay_delay0.04+slow_activation_scale2.5
+        slow activation alone took the delay's share (2.81 for 2.5), and the delay, checked and refined on its gains,
+        lost (dBIC -72,618 at 20 ms); refitted together from the delay's own fit (28.8 ms), the pair reached held-out
+        chi2 19,440 against 22,380 (truth 18,056). The best pair is claimed when the partner earns its own dBIC against
+        `final`'s effects refitted from the pair's gains without it (or `final`, the better on the training halves: the
+        pair's refit runs further gain iterations too, which alone can gain about the threshold), and then every effect
+        must earn its place (`backward`). Returns the model, `final` where no partner passes."""
+        threshold, tried = self.settings.threshold, {}
+        pairs = self.profile(final, singles)
+        for name, fit in pairs.items():
+            tried[name] = self.dbic(final, fit, self.candidates[name])
+            self.say(f"partner {name}: dBIC {tried[name]:.1f} with {fit.values}")
         best = max(tried, key=tried.get, default=None)
         if best is None or tried[best] <= threshold:
             record({"action": "partners", "model": list(final.effects), "tried": tried, **self.on_all_gains()})
