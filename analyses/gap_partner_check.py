@@ -1,5 +1,6 @@
 """Check of the gap search's partner test (`_Search.partners`) on a benchmark run's case: regenerate the case's data,
-take the run's final model and the effects that passed alone in its first step, and run the partner test on them.
+take the run's final model and the effects that passed alone in its first step (refined or checked), and run the
+partner test on them.
 
     python analyses/gap_partner_check.py CASE RUN_FOLDER   # e.g. docs/gap_benchmark/all_gains
 
@@ -34,11 +35,10 @@ def main(name: str, folder: str) -> dict:
         search.all_gains = True
         final = fitter.fit(case["effects"], case["x"], [], space=space)
         search.models = {frozenset(final.effects): final}
-        singles = {r["effect"]: SimpleNamespace(x=np.array(effect(r["effect"]).coordinates(r["values"]))) for r in ranking
-                   if r["status"] == "refined" and r["delta_bic"] > settings.threshold and r["effect"] not in final.effects}
+        own = search.first_passed(ranking, final)
         steps = []
-        model = search.partners(final, singles, steps.append)
-    return {"case": name, "final": {"values": final.values, "heldout_chi2": final.heldout_chi2}, "partners": list(singles),
+        model = search.partners(final, own, steps.append)
+    return {"case": name, "final": {"values": final.values, "heldout_chi2": final.heldout_chi2}, "partners": {n: x.tolist() for n, x in own.items()},
             "steps": steps, "model": {"values": model.values, "heldout_chi2": model.heldout_chi2},
             "simulations": fitter.simulations, "wall_s": time.perf_counter() - start}
 

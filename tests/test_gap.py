@@ -562,7 +562,7 @@ def test_after_the_polish_the_selection_goes_on_on_every_gain_direction():
 
 
 def test_a_partner_masked_by_the_chosen_effect_is_refitted_with_it_from_its_own_first_step_fit():
-    """`_Search.partners`: each first-step single is added to the final model at its own fitted values and refitted
+    """`_Search.partners`: each effect that passed the first step is added to the final model at its own values and refitted
     with it on every gain direction; the best is claimed on its dBIC against the final model's effects refitted from
     the pair's gains without it (here better on the training halves than the final model), then the backward test."""
     from types import SimpleNamespace
@@ -585,14 +585,13 @@ def test_a_partner_masked_by_the_chosen_effect_is_refitted_with_it_from_its_own_
     candidates = (effect("slow_activation"), effect("reflex_delay"), effect("upper_body_mass"))
     screen = SimpleNamespace(trials=[SimpleNamespace(steady_outputs=np.zeros((1000, 1)))])
     final = Fit(("slow_activation",), np.array([0.1, 0.2, 2.8]), 1300.0, 1400.0, {}, outputs=[])
-    singles = {"reflex_delay": SimpleNamespace(x=np.array([0.3, 0.4, 0.029])),
-               "upper_body_mass": SimpleNamespace(x=np.array([0.3, 0.4, 1.2]))}
+    own = {"reflex_delay": np.array([0.029]), "upper_body_mass": np.array([1.2])}
     chi2 = {("slow_activation", "reflex_delay"): 1000.0, ("slow_activation", "upper_body_mass"): 1395.0,
             ("slow_activation",): 1380.0, ("reflex_delay",): 1500.0}
     fitter, steps = Fitter(chi2), []
     search = _Search(SearchSpace(TrunkOptions(), layout, np.eye(2)), screen, fitter, candidates, Settings(), np.zeros((2, 0)), None)
     search.all_gains = True
-    model = search.partners(final, singles, steps.append)
+    model = search.partners(final, own, steps.append)
     assert model.effects == ("slow_activation", "reflex_delay")
     assert fitter.calls[0] == (("slow_activation", "reflex_delay"), [0.1, 0.2, 2.8, 0.029])  # at the single's own fit
     assert (("slow_activation", "upper_body_mass"), [0.1, 0.2, 2.8, 1.2]) in fitter.calls
@@ -604,9 +603,45 @@ def test_a_partner_masked_by_the_chosen_effect_is_refitted_with_it_from_its_own_
     fitter, steps = Fitter({**chi2, ("slow_activation", "reflex_delay"): 1375.0}), []
     search = _Search(search.space, screen, fitter, candidates, Settings(), np.zeros((2, 0)), None)
     search.all_gains = True
-    model = search.partners(final, singles, steps.append)
+    model = search.partners(final, own, steps.append)
     assert model.effects == ("slow_activation",) and model.heldout_chi2 == 1380.0
     assert [s["action"] for s in steps] == ["partners"] and steps[0]["best"] == "reflex_delay"
+
+
+def test_every_effect_that_passed_the_first_step_is_a_partner_candidate_refined_or_only_checked():
+    """`_Search.first_passed`: a partner candidate is every effect outside the final model that passed alone in the
+    first step, at its refit where it was refined and at its checked point where it was only checked (the check
+    simulates more candidates than are refined); effects that failed, or were never checked, are not."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.search import Settings, _Search
+    from trunk_drake.gap.space import Fit, SearchSpace
+    from trunk_drake.optim.gains import GainLayout
+
+    names = ("reflex_delay", "slow_activation", "muscle_strength", "trunk_in_space", "upper_body_mass", "golgi_feedback",
+             "seat_compliance")
+    screen = SimpleNamespace(trials=[SimpleNamespace(steady_outputs=np.zeros((1000, 1)))])
+    search = _Search(SearchSpace(TrunkOptions(), GainLayout(("kp.sacrospinalis",)), np.eye(1)), screen, FakeFitter(),
+                     [effect(n) for n in names], Settings(), np.zeros((1, 0)), None)
+    ranking = [
+        {"effect": "reflex_delay", "status": "refined", "delta_bic": 132103.0, "checked_delta_bic": 130993.0,
+         "values": {"delay": 0.028}, "checked_values": {"delay": 0.0278}},  # in the final model
+        {"effect": "slow_activation", "status": "refined", "delta_bic": 106814.0, "checked_delta_bic": 84359.0,
+         "values": {"scale": 1.68}, "checked_values": {"scale": 1.38}},
+        {"effect": "muscle_strength", "status": "refined", "delta_bic": 5.0, "checked_delta_bic": 44642.0,
+         "values": {"scale": 0.79}, "checked_values": {"scale": 0.83}},  # failed once refined
+        {"effect": "trunk_in_space", "status": "screened", "checked_delta_bic": 28495.0,
+         "checked_values": {"gain": 0.05, "delay": 0.12}},  # passed its check, not refined
+        {"effect": "upper_body_mass", "status": "screened", "checked_delta_bic": -3.0, "checked_values": {"scale": 1.18}},
+        {"effect": "golgi_feedback", "status": "failed: the refitted model diverged in simulation", "checked_delta_bic": 2750.0,
+         "checked_values": {"gain": 0.05}},
+        {"effect": "seat_compliance", "status": "screened", "linear_delta_bic": 50252.0},  # never checked
+    ]
+    final = Fit(("reflex_delay",), np.array([0.1, 0.028]), 1300.0, 1400.0, {}, outputs=[])
+    own = search.first_passed(ranking, final)
+    assert list(own) == ["slow_activation", "trunk_in_space"]
+    assert own["slow_activation"] == pytest.approx([1.68]) and own["trunk_in_space"] == pytest.approx([0.05, 0.12])
 
 
 def test_a_partner_refit_that_stops_short_is_overtaken_by_the_profile_over_its_parameter():
@@ -635,7 +670,7 @@ def test_a_partner_refit_that_stops_short_is_overtaken_by_the_profile_over_its_p
                      np.zeros((2, 0)), None)
     search.all_gains = True
     final = Fit(("slow_activation",), np.array([0.1, 0.2, 2.8]), 1300.0, 1400.0, {}, outputs=[])
-    fits = search.profile(final, {"reflex_delay": SimpleNamespace(x=np.array([0.3, 0.4, 0.0288]))})
+    fits = search.profile(final, {"reflex_delay": np.array([0.0288])})
     delay = effect("reflex_delay").parameters[0]
     held = [delay.lower + f * (delay.upper - delay.lower) for f in START_FRACTIONS]  # 37.5 and 92.5 ms
     calls = search.fitter.calls

@@ -227,12 +227,11 @@ class _Search:
         for name in names:
             e = self.candidates[name]
             effects = held + (e,)
-            lo, hi, start = space.bounds(effects)
-            new = slice(current.x.size, start.size)
+            start = space.bounds(effects)[2]
             free = self.added(current, start.size)
             best, status = None, "screened"
-            for fraction in (None, *START_FRACTIONS):  # the catalogue's start, then fractions of the range
-                x0 = np.concatenate([current.x, start[new] if fraction is None else lo[new] + fraction * (hi[new] - lo[new])])
+            # the catalogue's start, then fractions of the range
+            for x0 in [np.concatenate([current.x, start[current.x.size:]])] + self.across(current.x, effects):
                 try:
                     fit = self.screen.fit(space, effects, reference, x0, free=free)
                 except (ValueError, RuntimeError, np.linalg.LinAlgError) as err:  # reported, not dropped
@@ -275,10 +274,10 @@ class _Search:
         for r in checked:
             held = self.effects(current.effects) + (self.candidates[r["effect"]],)
             lin = r["linear_fit"].x
-            lo, hi, start = self.space.bounds(held)
+            start = self.space.bounds(held)[2]
             at = [lin, np.concatenate([current.x[:rank], lin[rank:]]), np.concatenate([current.x, start[n:]])]
             if self.all_gains:  # and across the effect's range with the polished gains
-                at += [np.concatenate([current.x, lo[n:] + f * (hi[n:] - lo[n:])]) for f in START_FRACTIONS]
+                at += self.across(current.x, held)
             points += at
             effects += [held] * len(at)
         outputs, runs = self.fitter.outputs_near(current.x, self.effects(current.effects), points, effects)
@@ -299,11 +298,12 @@ class _Search:
         extra_damping_damping16 refitted from 1 Nms/rad with 4 gain directions stopped at 1.1 (held-out chi2
         18,377), from 16 at 17,970 (the truth: 17,949), and the simulation at the start did not tell (training
         chi2 18,633 at 1, 25,006 at 16)."""
-        if not self.settings.gains_first:
-            return [x]
-        lo, hi, _ = self.space.bounds(held)
-        new = slice(current.x.size, x.size)
-        return [x] + [np.concatenate([current.x, lo[new] + f * (hi[new] - lo[new])]) for f in START_FRACTIONS]
+        return [x] + self.across(current.x, held) if self.settings.gains_first else [x]
+
+    def across(self, x: np.ndarray, effects) -> list[np.ndarray]:
+        """x followed by the parameters of `effects` beyond x (the added effect's) at `START_FRACTIONS` of their range."""
+        lo, hi, _ = self.space.bounds(effects)
+        return [np.concatenate([x, lo[x.size:] + f * (hi[x.size:] - lo[x.size:])]) for f in START_FRACTIONS]
 
     def refine(self, current: Fit, rows: list[dict]) -> dict[str, Fit]:
         """Nonlinear refits of the best `refine` screened rows after the check (the added effect's parameters and
@@ -382,31 +382,30 @@ class _Search:
         self.adopt(space)
         self.all_gains, self.models = True, {frozenset(fit.effects): fit}
 
-    def profile(self, final: Fit, singles: dict[str, Fit]) -> dict[str, Fit]:
-        """Each of `singles` added to `final` and refitted with it on every coordinate (`polish_fit`) from its own
-        first-step fit, and with its parameters held at `START_FRACTIONS` of their range while the rest is refitted (a
-        coarse profile); where a held point fits the training halves best, the pair is freed from there. A free refit
-        alone can stop short: on reflex_delay_delay0.04+slow_activation_scale2.5, from the delay's first-step 28.8 ms it
-        stopped at 27.5 ms (training chi2 18,682; ten rounds did not move it), while with the delay held at 40 ms the
-        rest reached 17,856 (`analyses/gap_pair_profile.py`). Returns the best refit of each that simulated, by name."""
+    def profile(self, final: Fit, own: dict[str, np.ndarray]) -> dict[str, Fit]:
+        """Each effect of `own` added to `final` and refitted with it on every coordinate (`polish_fit`) from its own
+        first-step point (`own`: its parameters there), and with its parameters held at `START_FRACTIONS` of their
+        range while the rest is refitted (a coarse profile); where a held point fits the training halves best, the pair
+        is freed from there. A free refit alone can stop short: on reflex_delay_delay0.04+slow_activation_scale2.5, from
+        the delay's first-step 28.8 ms it stopped at 27.5 ms (training chi2 18,682; ten rounds did not move it), while
+        with the delay held at 40 ms the rest reached 17,856 (`analyses/gap_pair_profile.py`). Returns the best refit
+        of each that simulated, by name."""
         n, threshold = final.x.size, self.settings.threshold
         calls, keys = [], []
-        for name, single in singles.items():
+        for name, x in own.items():
             effects = self.effects(final.effects) + (self.candidates[name],)
-            lo, hi, _ = self.space.bounds(effects)
-            own = np.concatenate([final.x, single.x[single.x.size - (lo.size - n):]])
-            calls.append(lambda effects=effects, x0=own: polish_fit(self.fitter, effects, x0, self.space, threshold))
-            calls += [lambda effects=effects, x0=np.concatenate([final.x, lo[n:] + f * (hi[n:] - lo[n:])]):
-                      polish_fit(self.fitter, effects, x0, self.space, threshold, free=np.arange(n)) for f in START_FRACTIONS]
+            calls.append(lambda effects=effects, x0=np.concatenate([final.x, x]):
+                         polish_fit(self.fitter, effects, x0, self.space, threshold))
+            calls += [lambda effects=effects, x0=x0: polish_fit(self.fitter, effects, x0, self.space, threshold,
+                                                                free=np.arange(n)) for x0 in self.across(final.x, effects)]
             keys += [(name, False)] + [(name, True)] * len(START_FRACTIONS)
         best, held = {}, {}
         for (name, fixed), fit in zip(keys, self.fitter.concurrently(calls)):
             if fit.outputs is not None and (name not in best or fit.train_chi2 < best[name].train_chi2):
                 best[name], held[name] = fit, fixed
         names = [name for name in best if held[name]]
-        freed = self.fitter.concurrently([lambda name=name: polish_fit(
-            self.fitter, self.effects(final.effects) + (self.candidates[name],), best[name].x, self.space, threshold)
-            for name in names])
+        freed = self.fitter.concurrently([lambda fit=best[name]: polish_fit(
+            self.fitter, self.effects(fit.effects), fit.x, self.space, threshold) for name in names])
         for name, fit in zip(names, freed):
             self.say(f"partner {name}: best held at {best[name].values[name]} (training chi2 {best[name].train_chi2:.0f}), "
                      f"freed from there: {fit.train_chi2:.0f}")
@@ -414,18 +413,36 @@ class _Search:
                 best[name] = fit
         return best
 
-    def partners(self, final: Fit, singles: dict[str, Fit], record) -> Fit:
-        """A partner for `final`'s effects among `singles` (effects refined alone in the first step that passed there):
-        each added to `final` and refitted with it along every gain direction (`polish_fit`) from the best of a profile
-        over its parameters (`profile`). An effect can mask its partner: on reflex_delay_delay0.04+slow_activation_scale2.5
-        slow activation alone took the delay's share (2.81 for 2.5), and the delay, checked and refined on its gains,
-        lost (dBIC -72,618 at 20 ms); refitted together from the delay's own fit (28.8 ms), the pair reached held-out
-        chi2 19,440 against 22,380 (truth 18,056). The best pair is claimed when the partner earns its own dBIC against
-        `final`'s effects refitted from the pair's gains without it (or `final`, the better on the training halves: the
-        pair's refit runs further gain iterations too, which alone can gain about the threshold), and then every effect
-        must earn its place (`backward`). Returns the model, `final` where no partner passes."""
+    def first_passed(self, ranking: list[dict], final: Fit) -> dict[str, np.ndarray]:
+        """The partner candidates for `final`: every effect not in it that passed alone in the first step (`ranking`),
+        at its point there (its parameters): its refit where it was refined, else its check. The check simulates up to
+        `check` candidates but only the best `refine` are refitted: in the case
+        reflex_delay_delay0.06+trunk_in_space_gain0.15_delay0.15 trunk-in-space passed its check at dBIC 28,495, fourth,
+        and was no partner candidate while only refitted effects were."""
+        own = {}
+        for row in ranking:
+            e, threshold = self.candidates[row["effect"]], self.settings.threshold
+            if e.name in final.effects:
+                continue
+            if row["status"] == "refined" and row["delta_bic"] > threshold:
+                own[e.name] = np.array(e.coordinates(row["values"]))
+            elif row["status"] == "screened" and row.get("checked_delta_bic", -np.inf) > threshold:
+                own[e.name] = np.array(e.coordinates(row["checked_values"]))
+        return own
+
+    def partners(self, final: Fit, own: dict[str, np.ndarray], record) -> Fit:
+        """A partner for `final`'s effects among `own` (the effects that passed alone in the first step, at their points
+        there: `first_passed`): each added to `final` and refitted with it along every gain direction (`polish_fit`)
+        from the best of a profile over its parameters (`profile`). An effect can mask its partner: on
+        reflex_delay_delay0.04+slow_activation_scale2.5 slow activation alone took the delay's share (2.81 for 2.5), and
+        the delay, checked and refined on its gains, lost (dBIC -72,618 at 20 ms); refitted together from the delay's
+        own fit (28.8 ms), the pair reached held-out chi2 19,440 against 22,380 (truth 18,056). The best pair is claimed
+        when the partner earns its own dBIC against `final`'s effects refitted from the pair's gains without it (or
+        `final`, the better on the training halves: the pair's refit runs further gain iterations too, which alone can
+        gain about the threshold), and then every effect must earn its place (`backward`). Returns the model, `final`
+        where no partner passes."""
         threshold, tried = self.settings.threshold, {}
-        pairs = self.profile(final, singles)
+        pairs = self.profile(final, own)
         for name, fit in pairs.items():
             tried[name] = self.dbic(final, fit, self.candidates[name])
             self.say(f"partner {name}: dBIC {tried[name]:.1f} with {fit.values}")
@@ -555,8 +572,7 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
     if len(final.effects) < settings.max_effects:  # on every gain direction, a further effect may now earn its place
         final = select(s, final, record, dropped=dropped)
     if final.effects and len(final.effects) < settings.max_effects:  # a partner masked by the effects chosen
-        final = s.partners(final, {n: f for n, f in singles.items() if n not in final.effects
-                                   and s.dbic(base, f, s.candidates[n]) > settings.threshold}, record)
+        final = s.partners(final, s.first_passed(ranking, final), record)
     return SearchResult(base, ranking, list(final.effects), final, steps,
                         {"n_heldout": s.n_test, "penalty": s.penalty, "refit_heldout_chi2": base.heldout_chi2}, s.space)
 
