@@ -609,9 +609,10 @@ def test_a_partner_masked_by_the_chosen_effect_is_refitted_with_it_from_its_own_
 
 
 def test_every_effect_that_passed_the_first_step_is_a_partner_candidate_refined_or_only_checked():
-    """`_Search.first_passed`: a partner candidate is every effect outside the final model that passed alone in the
+    """`_Search.first_passed`: a partner candidate is an effect outside the final model that passed alone in the
     first step, at its refit where it was refined and at its checked point where it was only checked (the check
-    simulates more candidates than are refined); effects that failed, or were never checked, are not."""
+    simulates more candidates than are refined), at most `refine` of them, the strongest first; effects that failed,
+    or were never checked, are not."""
     from types import SimpleNamespace
 
     from trunk_drake.gap.catalogue import effect
@@ -620,7 +621,7 @@ def test_every_effect_that_passed_the_first_step_is_a_partner_candidate_refined_
     from trunk_drake.optim.gains import GainLayout
 
     names = ("reflex_delay", "slow_activation", "muscle_strength", "trunk_in_space", "upper_body_mass", "golgi_feedback",
-             "seat_compliance")
+             "seat_compliance", "stiffening_discs", "extra_damping")
     screen = SimpleNamespace(trials=[SimpleNamespace(steady_outputs=np.zeros((1000, 1)))])
     search = _Search(SearchSpace(TrunkOptions(), GainLayout(("kp.sacrospinalis",)), np.eye(1)), screen, FakeFitter(),
                      [effect(n) for n in names], Settings(), np.zeros((1, 0)), None)
@@ -633,15 +634,18 @@ def test_every_effect_that_passed_the_first_step_is_a_partner_candidate_refined_
          "values": {"scale": 0.79}, "checked_values": {"scale": 0.83}},  # failed once refined
         {"effect": "trunk_in_space", "status": "screened", "checked_delta_bic": 28495.0,
          "checked_values": {"gain": 0.05, "delay": 0.12}},  # passed its check, not refined
-        {"effect": "upper_body_mass", "status": "screened", "checked_delta_bic": -3.0, "checked_values": {"scale": 1.18}},
+        {"effect": "upper_body_mass", "status": "screened", "checked_delta_bic": 27608.0, "checked_values": {"scale": 1.18}},
+        {"effect": "stiffening_discs", "status": "screened", "checked_delta_bic": -3.0, "checked_values": {"cubic": 50.0}},
+        {"effect": "extra_damping", "status": "screened", "checked_delta_bic": 2000.0, "checked_values": {"damping": 4.0}},
         {"effect": "golgi_feedback", "status": "failed: the refitted model diverged in simulation", "checked_delta_bic": 2750.0,
          "checked_values": {"gain": 0.05}},
         {"effect": "seat_compliance", "status": "screened", "linear_delta_bic": 50252.0},  # never checked
     ]
     final = Fit(("reflex_delay",), np.array([0.1, 0.028]), 1300.0, 1400.0, {}, outputs=[])
     own = search.first_passed(ranking, final)
-    assert list(own) == ["slow_activation", "trunk_in_space"]
+    assert list(own) == ["slow_activation", "trunk_in_space", "upper_body_mass"]  # extra damping passed, fourth
     assert own["slow_activation"] == pytest.approx([1.68]) and own["trunk_in_space"] == pytest.approx([0.05, 0.12])
+    assert list(search.first_passed(ranking[:4], final)) == ["slow_activation", "trunk_in_space"]
 
 
 def test_a_partner_refit_that_stops_short_is_overtaken_by_the_profile_over_its_parameter():

@@ -414,21 +414,23 @@ class _Search:
         return best
 
     def first_passed(self, ranking: list[dict], final: Fit) -> dict[str, np.ndarray]:
-        """The partner candidates for `final`: every effect not in it that passed alone in the first step (`ranking`),
-        at its point there (its parameters): its refit where it was refined, else its check. The check simulates up to
-        `check` candidates but only the best `refine` are refitted: in the case
+        """The partner candidates for `final`: the effects not in it that passed alone in the first step (`ranking`),
+        each at its point there (its parameters: its refit where it was refined, else its check), at most `refine` of
+        them, the strongest there first (the refined dBIC, else the checked one). The check simulates up to `check`
+        candidates but only the best `refine` are refitted: in the case
         reflex_delay_delay0.06+trunk_in_space_gain0.15_delay0.15 trunk-in-space passed its check at dBIC 28,495, fourth,
-        and was no partner candidate while only refitted effects were."""
-        own = {}
+        and was no partner candidate while only refitted effects were. Each candidate costs a profile of up to four
+        refits in rounds (`profile`), hence the budget."""
+        threshold, passed = self.settings.threshold, []
         for row in ranking:
-            e, threshold = self.candidates[row["effect"]], self.settings.threshold
+            e = self.candidates[row["effect"]]
             if e.name in final.effects:
                 continue
             if row["status"] == "refined" and row["delta_bic"] > threshold:
-                own[e.name] = np.array(e.coordinates(row["values"]))
+                passed.append((row["delta_bic"], e.name, e.coordinates(row["values"])))
             elif row["status"] == "screened" and row.get("checked_delta_bic", -np.inf) > threshold:
-                own[e.name] = np.array(e.coordinates(row["checked_values"]))
-        return own
+                passed.append((row["checked_delta_bic"], e.name, e.coordinates(row["checked_values"])))
+        return {name: np.array(x) for _, name, x in sorted(passed, key=lambda p: -p[0])[:self.settings.refine]}
 
     def partners(self, final: Fit, own: dict[str, np.ndarray], record) -> Fit:
         """A partner for `final`'s effects among `own` (the effects that passed alone in the first step, at their points
