@@ -139,7 +139,7 @@ def model():
     return td.load_model("sagittal")
 
 
-def diagnose_withheld_damping(model):
+def diagnose_withheld_damping(model, checkpoint=None):
     """Two short trials of the reference truth with 20 Nms/rad extra damping withheld, diagnosed
     against three candidates; asserts that the damping is named and the gap closes."""
     nominal = nominal_options()
@@ -147,7 +147,7 @@ def diagnose_withheld_damping(model):
     noise = np.radians(0.1)
     trials = synthetic_trials(model, truth, [("a", 1.0, 1), ("b", 3.0, 2)], noise, seed=3, period=PERIOD)
     d = diagnose_gap(model, trials, nominal, noise=noise, period=PERIOD, refine=2, max_effects=1,
-                     candidates=["extra_damping", "reflex_delay", "seat_compliance"], workers=2)
+                     candidates=["extra_damping", "reflex_delay", "seat_compliance"], workers=2, checkpoint=checkpoint)
     assert d.selected == ["extra_damping"], d.ranking
     assert d.final["effects"]["extra_damping"]["damping"] == pytest.approx(20.0, rel=0.5)
     assert d.shrink["gap"]["effect"] < d.shrink["gap"]["nominal"]
@@ -155,9 +155,32 @@ def diagnose_withheld_damping(model):
     return nominal, trials, d
 
 
-def test_diagnosis_on_the_rhythm_names_withheld_damping():
-    """The diagnosis in the coupled rhythm configuration (one lumbar_FE; levels through the level matrix)."""
-    diagnose_withheld_damping(td.load_model("rhythm"))
+def test_diagnosis_on_the_rhythm_names_withheld_damping_and_resumes_where_it_was_interrupted(tmp_path, monkeypatch):
+    """The diagnosis in the coupled rhythm configuration (one lumbar_FE; levels through the level matrix), stopped
+    in the middle of its refits and rerun with the same simulation log: it takes the logged simulations and goes on."""
+    from trunk_drake.gap.refit import TimeDomainFitter
+
+    class Stop(Exception):
+        pass
+
+    model, log = td.load_model("rhythm"), tmp_path / "simulations.pickle"
+    outputs_of, calls = TimeDomainFitter.outputs_of, []
+
+    def stopping(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) > 12:
+            raise Stop
+        return outputs_of(self, *args, **kwargs)
+
+    monkeypatch.setattr(TimeDomainFitter, "outputs_of", stopping)
+    with pytest.raises(Stop):
+        diagnose_withheld_damping(model, log)
+    assert log.stat().st_size > 0
+    monkeypatch.setattr(TimeDomainFitter, "outputs_of", outputs_of)
+    _, _, d = diagnose_withheld_damping(model, log)
+    scores = d.options["scores"]
+    assert 0 < scores["replayed_simulations"] < scores["simulations"]
+    assert not log.exists()  # done: the log is removed
 
 
 def test_diagnosis_names_withheld_damping_and_shrinks_the_gap(model, tmp_path):
@@ -684,6 +707,61 @@ def test_a_partner_refit_that_stops_short_is_overtaken_by_the_profile_over_its_p
     assert calls[-1] == (("slow_activation", "reflex_delay"), [0.1, 0.2, 2.8, held[0]], [0, 1, 2, 3])  # freed from 37.5
     assert fits["reflex_delay"].x[-1] == pytest.approx(held[0])
     assert fits["reflex_delay"].heldout_chi2 == pytest.approx(1000.0 + 1e6 * 0.0025 ** 2)
+
+
+def test_a_simulation_log_gives_back_what_was_simulated_and_survives_a_record_cut_short(tmp_path):
+    """`TimeDomainFitter` with a `SimulationLog`: what it simulates is written to the log; a new fitter on the same log
+    (the rerun of an interrupted diagnosis) takes those results, exactly, instead of simulating them, and counts them
+    as simulations (replayed). A record cut short by the interruption is dropped and overwritten; a log of another
+    diagnosis is started afresh."""
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.checkpoint import SimulationLog
+    from trunk_drake.gap.refit import TimeDomainFitter
+    from trunk_drake.gap.space import SearchSpace
+
+    model = td.load_model("rhythm")
+
+    class Pool:  # every run gives outputs no other run gives, and its steps
+        workers, parallel = 1, False
+
+        def __init__(self):
+            self.model, self.jobs = model, []
+
+        def map(self, fn, jobs):
+            self.jobs += jobs
+            return [(np.full((4, 1), np.random.default_rng().normal()), None, np.linspace(0.0, 1.0, 5)) for _ in jobs]
+
+    space = SearchSpace.around(model, nominal_options())
+    space = SearchSpace(space.options, space.layout, np.eye(len(space.layout.names))[:, :2])
+    delay = effect("reflex_delay")
+    points = [(np.array([0.0, 0.1, 0.05]), (delay,)), (np.array([0.1, 0.0]), ()), (np.array([0.0, 0.2]), ())]
+    path = tmp_path / "simulations.pickle"
+
+    def run(log, chosen):
+        pool, counter = Pool(), {"simulations": 0}
+        fitter = TimeDomainFitter(pool, space, [None] * 3, None, (), counter, log)
+        out = fitter.outputs_of([points[i][0] for i in chosen], [points[i][1] for i in chosen])
+        return out, pool, counter
+
+    with SimulationLog(path, "a") as log:
+        first, pool, _ = run(log, [0, 1])
+    assert len(pool.jobs) == 6
+    with path.open("ab") as f:
+        f.write(b"\x80\x05\x95 cut short")
+    with SimulationLog(path, "a") as log:
+        assert len(log.entries) == 2 and log.fresh_because is None
+        again, pool, counter = run(log, [0, 1, 2])
+    assert len(pool.jobs) == 3  # only the new point, on each trial
+    for a, b in zip(first, again[:2]):
+        for x, y in zip(a, b):
+            np.testing.assert_array_equal(x, y)
+    assert counter == {"simulations": 9, "replayed": 6}
+    assert len(SimulationLog(path, "a").entries) == 3  # the cut record is gone, the new one readable
+    other = SimulationLog(path, "b")
+    assert not other.entries and "another diagnosis" in other.fresh_because
+    other.add({"k": (None, None)})
+    other.remove()
+    assert not path.exists()
 
 
 def test_a_diagnosis_says_its_steps_on_stdout_or_in_a_file(tmp_path, capsys):

@@ -13,7 +13,8 @@ def add_command(sub) -> None:
                        description="Trials (CSV/.sto/.mot or folders; a conditions.toml beside them sets the known conditions) "
                                    "against the model with the given reflex gains.")
     p.add_argument("data", nargs="+", help="trial files or folders (at least two trials)")
-    p.add_argument("--out", required=True, help="output folder (report.md, diagnosis.json, figures)")
+    p.add_argument("--out", required=True, help="output folder (report.md, diagnosis.json, figures; while it runs, its "
+                                                 "simulations, so that the same command resumes an interrupted diagnosis)")
     p.add_argument("--conditions", help="TOML with a [conditions] table (default: conditions.toml beside the data)")
     p.add_argument("--gains", help="TOML with [kp] and [kv] per group: the model's reflex gains (e.g. a fit's gains.toml)")
     dofs_argument(p, default=None)
@@ -29,13 +30,16 @@ def add_command(sub) -> None:
     p.add_argument("--no-animation", action="store_true",
                    help="skip the two animations of the first trial (nominal and diagnosed model against the data)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, resumable=True)
 
 
 def run(args) -> int:
+    from pathlib import Path
+
     import numpy as np
 
     from trunk_drake.diagram import TrunkOptions
+    from trunk_drake.gap.checkpoint import LOG_NAME
     from trunk_drake.gap.diagnose import diagnose_gap
     from trunk_drake.gap.report import write_diagnosis
     from trunk_drake.io.experiment import load_experiment
@@ -55,7 +59,7 @@ def run(args) -> int:
                              outputs=available_outputs(experiment.trials),
                              candidates=args.candidates, threshold=args.threshold, refine=args.refine,
                              period=experiment.period, fade=experiment.fade, workers=args.workers, gains_first=args.gains_first,
-                             progress=not args.json)
+                             progress=not args.json, checkpoint=Path(args.out) / LOG_NAME)
     animations = {} if args.no_animation else _animations(model, experiment.trials[0], TrunkOptions(**options), diagnosis, args.out)
     files = write_diagnosis(diagnosis, args.out, animations)
     if args.json:

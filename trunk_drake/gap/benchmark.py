@@ -23,6 +23,7 @@ import numpy as np
 
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.gap.catalogue import effect
+from trunk_drake.gap.checkpoint import LOG_NAME
 from trunk_drake.gap.diagnose import diagnose_gap
 from trunk_drake.gap.measures import segment_chi2
 from trunk_drake.gap.refit import simulate_outputs
@@ -192,13 +193,14 @@ def published_case(name: str, folder) -> dict:
 def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers: int, candidates=None,
              gains_first: bool = False, progress: Path | None = None):
     """Simulate the case's truth, diagnose it blind (among `candidates`, default the whole
-    catalogue; `gains_first`: see `diagnose_gap`; its steps appended to the file `progress` if given);
-    returns (result row, diagnosis)."""
+    catalogue; `gains_first`: see `diagnose_gap`; its steps appended to the file `progress` if given, and its
+    simulations logged beside it, so that the case resumes where it stopped); returns (result row, diagnosis)."""
     start = time.perf_counter()
     designs, truth, clean, noisy = case_trials(model, case, nominal, noise_rad)
     observability = _observability(model, case, nominal, designs, clean, noise_rad) if case.effects else {}
     diagnosis = diagnose_gap(model, noisy, nominal, noise=noise_rad, candidates=candidates, threshold=THRESHOLD, workers=workers,
-                             gains_first=gains_first, progress=progress or False)
+                             gains_first=gains_first, progress=progress or False,
+                             checkpoint=progress.parent / LOG_NAME if progress else None)
     if case.kind == "single":
         observability.update(_versus_gains(model, case, truth, noisy, diagnosis, noise_rad))
     top = diagnosis.ranking[0]["effect"] if diagnosis.ranking else None
@@ -210,7 +212,8 @@ def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers
            "gap": diagnosis.shrink.get("gap"), "reduction": diagnosis.shrink.get("reduction"),
            "reduction_above_noise": diagnosis.shrink.get("reduction_above_noise"),
            "noise_floor_gap": diagnosis.shrink.get("noise_floor_gap"), **observability,
-           "simulations": diagnosis.options["scores"]["simulations"], "wall_time_s": time.perf_counter() - start}
+           "simulations": diagnosis.options["scores"]["simulations"],
+           "replayed_simulations": diagnosis.options["scores"]["replayed_simulations"], "wall_time_s": time.perf_counter() - start}
     return row, diagnosis
 
 

@@ -37,6 +37,7 @@ Method (the stages are modules of this package):
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import time as _time
 from dataclasses import dataclass, field
@@ -46,6 +47,7 @@ import numpy as np
 
 from trunk_drake.diagram import TrunkOptions
 from trunk_drake.gap.catalogue import CATALOGUE, effect
+from trunk_drake.gap.checkpoint import SimulationLog, diagnosis_identity
 from trunk_drake.gap.measures import frf_errors, locate_gap, measure_shrinkage, remainder, segment_chi2
 from trunk_drake.gap.refit import TimeDomainFitter, simulation_job
 from trunk_drake.gap.screen import LinearScreen, gain_directions, identifiable_rank
@@ -96,7 +98,8 @@ def progress_lines(progress: bool | Path, stamp):
 
 def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: float | None = None, outputs=OUTPUT_NAMES,
                  candidates=None, threshold: float = 10.0, max_effects: int = 3, refine: int = 3, period: float = 20.0,
-                 fade: float = 2.0, workers: int = 2, gains_first: bool = False, progress: bool | Path = False) -> GapDiagnosis:
+                 fade: float = 2.0, workers: int = 2, gains_first: bool = False, progress: bool | Path = False,
+                 checkpoint: Path | None = None) -> GapDiagnosis:
     """Diagnose the gap between `model` (with `options`, e.g. fitted reflex gains) and `trials`.
 
     `noise` (rad, scalar or per output) is the measurement noise of the angles (estimated per
@@ -106,6 +109,8 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
     without it by more than `threshold` after a k ln N penalty; at most `max_effects`. `gains_first`: the
     gains are widened beyond the identifiable directions (as far as each further direction passes) before
     any effect is weighed (`search.Settings`). `progress`: a line per step on stdout (True) or appended to a file.
+    `checkpoint`: a file the refits' simulations are written to as they finish (`checkpoint.SimulationLog`); rerun
+    after an interruption, the diagnosis takes them from there and goes on where it stopped. Removed at the end.
     """
     wall = _time.perf_counter()
     count = {"simulations": 0}  # shared with the fitter: every progress line says how many simulations so far
@@ -120,7 +125,8 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
     if say:
         say(f"{len(data)} trials, noise {np.round(np.degrees(noise), 3).tolist()} deg; simulating the nominal model")
     settings = Settings(threshold=threshold, max_effects=max_effects, refine=refine, gains_first=gains_first)
-    with WorkerPool(model, workers) as simulator:
+    log = _log(checkpoint, diagnosis_identity(model, options, data, noise, outputs, candidates, settings), say)
+    with WorkerPool(model, workers) as simulator, log or contextlib.nullcontext():  # the log closed on any exit
         results = simulator.map(simulation_job, [(options, t, outputs, None, None) for t in data])
         for t, r in zip(data, results):
             if isinstance(r, Exception):
@@ -132,16 +138,30 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
         directions, singular_values = gain_directions(screen, space)
         rank = identifiable_rank(singular_values)
         space = dataclasses.replace(space, directions=directions[:, :rank])
-        fitter = TimeDomainFitter(simulator, space, data, noise, outputs, count)
+        fitter = TimeDomainFitter(simulator, space, data, noise, outputs, count, log)
         if say:
             say(f"linearised; {space.rank} identifiable gain directions; screening {len(candidates)} candidates")
         found = search_effects(space, screen, fitter, candidates, settings, nominal, [r[2] for r in results],
                                directions[:, rank:], say)
     found.scores.update(nominal_heldout_chi2=sum(segment_chi2(t.steady_outputs, n, noise, half(t, "test"))
                                                  for t, n in zip(data, nominal)),
-                        simulations=fitter.simulations)
+                        simulations=fitter.simulations, replayed_simulations=count["replayed"])
+    if log is not None:
+        log.remove()
     left = remainder(data, found.best.outputs, noise, outputs, noise_rel_sd)
     return _report(data, noise, nominal, space, found, left, settings, candidates, outputs, wall)
+
+
+def _log(checkpoint, identity: str, say) -> SimulationLog | None:
+    """The simulation log at `checkpoint` (None: none), with a line on what it holds."""
+    if checkpoint is None:
+        return None
+    log = SimulationLog(checkpoint, identity)
+    if say and log.fresh_because:
+        say(f"not resuming from {checkpoint}: {log.fresh_because}; it is started afresh")
+    elif say and log.entries:
+        say(f"resuming: the simulations of {len(log.entries)} refit points logged in {checkpoint} are taken, not run again")
+    return log
 
 
 def _report(data, noise, nominal, space: SearchSpace, found: SearchResult, left: dict, settings: Settings, candidates,

@@ -10,6 +10,7 @@ import threading
 import numpy as np
 
 from trunk_drake.diagram import VARIANT_FIELDS, CopiesUnsupported, TrunkOptions, copies_unsupported
+from trunk_drake.gap.checkpoint import SimulationLog
 from trunk_drake.gap.linear import OPERATING_POINT_LOGS, OperatingPoint
 from trunk_drake.gap.measures import segment_chi2
 from trunk_drake.gap.space import Fit, SearchSpace
@@ -94,9 +95,12 @@ class TimeDomainFitter:
     held). A fit simulates every point on the step sequences of its start's own run
     (`differentiable_settings`), so its finite differences are smooth."""
 
-    def __init__(self, simulator: WorkerPool, space: SearchSpace, trials, noise, outputs, counter: dict | None = None):
+    def __init__(self, simulator: WorkerPool, space: SearchSpace, trials, noise, outputs, counter: dict | None = None,
+                 log: SimulationLog | None = None):
         self.simulator, self.space, self.trials, self.noise, self.outputs = simulator, space, trials, noise, outputs
         self.counter = counter if counter is not None else {"simulations": 0}  # shared with whoever reports progress
+        self.counter.setdefault("replayed", 0)  # of them, taken from `log` (an earlier, interrupted run's)
+        self.log = log  # where the simulations are written as they finish, and read from when resuming
         self.cache: dict = {}  # `key` (the model simulated, the run replayed or None) -> (outputs, steps)
         self._counting = threading.Lock()  # fits may run concurrently (`WorkerPool.concurrently`)
 
@@ -123,11 +127,19 @@ class TimeDomainFitter:
         `effects`: one tuple of effects for every point, or a list of one tuple per point; `on`: the
         key of a run whose step sequences the simulations replay (None: each its own); `space`: the
         points' space if not the fitter's; `train_only`: each trial simulated to the end of its training
-        half only (the outputs hold no held-out half: for the refits' own steps)."""
+        half only (the outputs hold no held-out half: for the refits' own steps). Simulations in the fitter's `log`
+        are taken from it (and counted as run); those run are added to it."""
         space = space or self.space
         each = effects if isinstance(effects, list) else [effects] * len(points)
         keys = [self.key(p, fx, on, space, train_only) for p, fx in zip(points, each)]
         todo = {k: (p, fx) for k, p, fx in zip(keys, points, each) if k not in self.cache}
+        if self.log is not None and todo:
+            logged = self.log.take(todo)
+            with self._counting:
+                self.cache.update(logged)
+                self.counter["simulations"] += len(logged) * len(self.trials)
+                self.counter["replayed"] += len(logged) * len(self.trials)
+            todo = {k: v for k, v in todo.items() if k not in logged}
         steps = self.cache[on][1] if on is not None else [None] * len(self.trials)
         options = [space.options_for(p, fx) for p, fx in todo.values()]
         plan = self._plan(options, steps)
@@ -143,6 +155,8 @@ class TimeDomainFitter:
         for k, chunk in zip(todo, sims):
             diverged = any(isinstance(c, Exception) for c in chunk)
             self.cache[k] = (None, None) if diverged else ([c[0] for c in chunk], [c[2] for c in chunk])
+        if self.log is not None and todo:
+            self.log.add({k: self.cache[k] for k in todo})
         return [self.cache[k][0] for k in keys]
 
     def outputs_near(self, x, effects, points, each) -> tuple[list, list]:
