@@ -417,7 +417,7 @@ def test_a_refits_points_that_differ_in_variant_fields_run_as_copies():
     model = td.load_model("rhythm")
     space = SearchSpace.around(model, dataclasses.replace(nominal_options(), reflex_delay=0.02))
     space = SearchSpace(space.options, space.layout, np.eye(len(space.layout.names))[:, :2])
-    fitter = TimeDomainFitter(SimpleNamespace(workers=2, parallel=True, model=model), space, [None] * 3, None, ())
+    fitter = TimeDomainFitter(SimpleNamespace(capacity=2, model=model), space, [None] * 3, None, ())
     delay, damping, seat = effect("reflex_delay"), effect("extra_damping"), effect("seat_compliance")
     steps = [np.linspace(0.0, 1.0, 5)] * 3
     points = [(np.array([0.0, 0.0, 0.03]), (delay,)), (np.array([0.1, 0.0, 0.03]), (delay,)),
@@ -447,7 +447,7 @@ def test_the_checks_replay_the_current_models_steps_as_copies_where_the_diagram_
     own_steps = np.linspace(0.0, 1.0, 7)
 
     class Pool:  # records the jobs; every run gives zero outputs and its steps
-        workers, parallel = 2, True
+        capacity = 2
 
         def __init__(self):
             self.model, self.jobs = model, []
@@ -722,7 +722,7 @@ def test_a_simulation_log_gives_back_what_was_simulated_and_survives_a_record_cu
     model = td.load_model("rhythm")
 
     class Pool:  # every run gives outputs no other run gives, and its steps
-        workers, parallel = 1, False
+        capacity = 1
 
         def __init__(self):
             self.model, self.jobs = model, []

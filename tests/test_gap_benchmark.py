@@ -62,6 +62,20 @@ def test_summary_rates_per_class_and_unobservable_cases_left_out():
     assert "unobservable" in text and "| p2 | pair |" in text and "o2" in text and "100 (as gains)" in text
 
 
+def test_the_summary_covers_every_case_done_in_the_folder_in_benchmark_order(tmp_path):
+    """Written after each case: a run of some cases (`--case NAME`) adds to the folder's summary, never replaces it."""
+    import json
+
+    from trunk_drake.gap import benchmark
+
+    every = benchmark.cases()
+    names = [c.name for c in every]
+    done = {c.name: benchmark._error_row(c, "stopped") for c in (every[5], every[0])}
+    benchmark._write_summary(tmp_path, done, 0.1, None, False)
+    assert [r["case"] for r in json.loads((tmp_path / "summary.json").read_text())["rows"]] == [names[0], names[5]]
+    assert (tmp_path / "summary.md").read_text().count("| failed: stopped |") == 2
+
+
 def test_cases_start_with_their_classes_mixed_and_a_folder_refuses_other_code(tmp_path):
     from trunk_drake.gap import benchmark
 

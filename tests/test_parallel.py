@@ -41,6 +41,15 @@ def test_workers_rebuild_the_model_and_keep_the_order(sagittal):
         assert {pid for pid, _ in pool.map(_lengths, poses[:2])} == {os.getpid()}
 
 
+def test_a_pool_runs_as_many_jobs_at_once_as_it_has_workers_or_the_cluster_has_threads(sagittal):
+    """`WorkerPool.capacity`: how the fits split a Jacobian's points into jobs (`optim.fit.point_jobs`)."""
+    assert WorkerPool(sagittal, workers=1).capacity == 1 and WorkerPool(sagittal, workers=3).capacity == 3
+    distributed = pytest.importorskip("dask.distributed")
+    with distributed.LocalCluster(n_workers=3, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        with WorkerPool(sagittal, workers=1, cluster=cluster.scheduler_address) as pool:
+            assert pool.parallel and pool.capacity == 3
+
+
 @pytest.mark.parametrize("workers", [1, 2])
 def test_a_job_error_reaches_the_caller(sagittal, workers):
     with WorkerPool(sagittal, workers=workers) as pool:

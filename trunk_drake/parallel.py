@@ -96,6 +96,23 @@ class WorkerPool:
     def parallel(self) -> bool:
         return bool(self.cluster) or self.workers > 1
 
+    @property
+    def capacity(self) -> int:
+        """How many jobs run at once: the local workers (1: in this process), or the cluster's worker threads."""
+        if self.cluster:
+            return max(1, sum(self._connect().nthreads().values()))
+        return max(1, self.workers)
+
+    def _connect(self):
+        """The Dask client, connected (and the recipe sent to every worker) on first use."""
+        from dask.distributed import Client
+
+        with self._starting:
+            if self._client is None:
+                self._client = Client(self.cluster)
+                self._recipe_future = self._client.scatter(self.recipe, broadcast=True)
+        return self._client
+
     def __enter__(self) -> "WorkerPool":
         return self
 
@@ -173,13 +190,9 @@ class WorkerPool:
                     yield futures[future], None, err
 
     def _dask(self, fn, jobs):
-        from dask.distributed import Client, as_completed
+        from dask.distributed import as_completed
 
-        with self._starting:
-            if self._client is None:
-                self._client = Client(self.cluster)
-                self._recipe_future = self._client.scatter(self.recipe, broadcast=True)
-        futures = self._client.map(_run, [fn] * len(jobs), [self._recipe_future] * len(jobs), jobs, pure=False)
+        futures = self._connect().map(_run, [fn] * len(jobs), [self._recipe_future] * len(jobs), jobs, pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         for future in as_completed(futures):
             try:

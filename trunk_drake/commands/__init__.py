@@ -54,6 +54,12 @@ def count(text: str) -> int:
     return value
 
 
+def cluster_argument(parser, runs: str) -> None:
+    """--cluster ADDRESS: a Dask scheduler whose workers run `runs` (instead of local processes)."""
+    parser.add_argument("--cluster", default=None, metavar="ADDRESS",
+                        help=f"Dask scheduler address, e.g. tcp://host:8786: {runs} run on its workers (--workers is then unused)")
+
+
 def plain_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """warnings.showwarning for users: one line, no Python source."""
     print(f"warning: {message}", file=file or sys.stderr)

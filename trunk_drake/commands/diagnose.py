@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from trunk_drake.commands import count, dofs_argument, positive
+from trunk_drake.commands import cluster_argument, count, dofs_argument, positive
 from trunk_drake.gap.catalogue import CATALOGUE
 
 
@@ -26,7 +26,8 @@ def add_command(sub) -> None:
     p.add_argument("--gains-first", action="store_true",
                    help="widen the reflex gains beyond the identifiable directions (as far as each further direction "
                         "passes the threshold) before weighing any effect")
-    p.add_argument("--workers", type=count, default=2)
+    p.add_argument("--workers", type=count, default=2, help="parallel simulation processes")
+    cluster_argument(p, "the simulations")
     p.add_argument("--no-animation", action="store_true",
                    help="skip the two animations of the first trial (nominal and diagnosed model against the data)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
@@ -58,7 +59,8 @@ def run(args) -> int:
     diagnosis = diagnose_gap(model, experiment.trials, TrunkOptions(**options), noise=noise,
                              outputs=available_outputs(experiment.trials),
                              candidates=args.candidates, threshold=args.threshold, refine=args.refine,
-                             period=experiment.period, fade=experiment.fade, workers=args.workers, gains_first=args.gains_first,
+                             period=experiment.period, fade=experiment.fade, workers=args.workers, cluster=args.cluster,
+                             gains_first=args.gains_first,
                              progress=not args.json, checkpoint=Path(args.out) / LOG_NAME)
     animations = {} if args.no_animation else _animations(model, experiment.trials[0], TrunkOptions(**options), diagnosis, args.out)
     files = write_diagnosis(diagnosis, args.out, animations)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from trunk_drake.commands import count, dofs_argument, positive, print_json
+from trunk_drake.commands import cluster_argument, count, dofs_argument, positive, print_json
 from trunk_drake.optim.fit import MAX_ITERATIONS, THESIS_START
 
 
@@ -22,6 +22,7 @@ def add_command(sub) -> None:
     p.add_argument("--starts", type=count, default=1,
                    help="number of starting points (multi-start; the first: the data's preset's gains, else the thesis' initial values)")
     p.add_argument("--workers", type=count, default=2, help="parallel simulation processes")
+    cluster_argument(p, "the simulations")
     p.add_argument("--max-iterations", type=count, default=MAX_ITERATIONS, help="per start")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.set_defaults(func=run)
@@ -60,7 +61,7 @@ def run(args) -> int:
         options = TrunkOptions(**opts)
         start = experiment.preset_gains()
     result = fit_reflex_gains(model, targets, scenario=args.scenario, options=options, start=start, n_starts=args.starts,
-                              workers=args.workers, max_iterations=args.max_iterations, progress=not args.json)
+                              workers=args.workers, cluster=args.cluster, max_iterations=args.max_iterations, progress=not args.json)
     files = write_fit(result, args.out)
     summary = {"gains": result.gains, "std": result.std, "vaf": result.vaf, "cost": result.cost,
                "n_simulations": result.n_simulations, "wall_time_s": result.wall_time_s,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from trunk_drake.commands import count, positive
+from trunk_drake.commands import cluster_argument, count, positive
 from trunk_drake.gap.benchmark import CLASSES, cases
 from trunk_drake.gap.catalogue import CATALOGUE
 
@@ -23,8 +23,7 @@ def add_command(sub) -> None:
                         "catalogue is a different benchmark: a folder resumes only with the candidates it began with")
     b.add_argument("--workers", type=count, default=2,
                    help="local processes: the cases run on them in parallel (one case: its diagnosis does)")
-    b.add_argument("--cluster", default=None, metavar="ADDRESS",
-                   help="Dask scheduler address, e.g. tcp://host:8786: the cases run in parallel, one per worker")
+    cluster_argument(b, "the cases (in parallel, one per worker)")
     b.add_argument("--gains-first", action="store_true",
                    help="the search variant that widens the gains before weighing any effect (a different benchmark: "
                         "a folder resumes only with the variant it began with)")

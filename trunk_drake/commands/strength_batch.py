@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from trunk_drake.commands import count, print_json
+from trunk_drake.commands import cluster_argument, count, print_json
 
 
 def add_command(sub) -> None:
     p = sub.add_parser("strength-batch", help="isometric strength over a grid of cases (parallel, resumable)")
     p.add_argument("grid", help="grid file (TOML), e.g. models/strength_grid_example.toml")
     p.add_argument("--out", required=True, help="output folder (results.jsonl, results.csv); rerun to resume")
-    p.add_argument("--cluster", default=None, metavar="ADDRESS", help="Dask scheduler address, e.g. tcp://host:8786")
+    cluster_argument(p, "the cases")
     p.add_argument("--workers", type=count, default=None, help="local worker processes (default: CPU count)")
     p.add_argument("--retry-failed", action="store_true", help="rerun cases recorded as failed")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")

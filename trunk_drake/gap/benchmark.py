@@ -270,7 +270,7 @@ def _versus_gains(model, case: Case, truth: TrunkOptions, noisy, diagnosis, nois
 def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE_DEG, workers: int = 2, progress=print,
                   cluster: str | None = None, only=None, candidates=None, gains_first: bool = False) -> dict:
     """Run (or resume) every case, or those of `only` (case names or classes: single, pair, outside,
-    none); returns the summary of the cases done so far (also written to summary.json/.md). Each
+    none); returns the summary of the cases done so far (also written to summary.json/.md, after each case). Each
     diagnosis chooses among `candidates` (effect names; default the whole catalogue). The cases run
     in parallel, one per worker: on `workers` local processes, or on the Dask cluster at `cluster`;
     a single case runs its diagnosis on the `workers` instead. They start in an order that mixes the
@@ -313,7 +313,16 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
                 progress(f"[{finished + len(all_cases) - len(pending)}/{len(all_cases)}] {case.name}: " + (row.get("error") or
                          f"claimed {row['selected'] or 'none'}{', unexplained remainder' if row['unexplained'] else ''} "
                          f"({row['wall_time_s']:.0f} s)"))
-    summary = summarize([done[c.name] for c in all_cases if c.name in done], noise_deg, candidates, gains_first)
+            _write_summary(out, done, noise_deg, candidates, gains_first)
+    return _write_summary(out, done, noise_deg, candidates, gains_first)
+
+
+def _write_summary(out: Path, done: dict, noise_deg: float, candidates, gains_first: bool) -> dict:
+    """summary.json and summary.md of every case done in the folder so far, in benchmark order (rewritten as each
+    case finishes; a run of some cases adds to the folder's summary)."""
+    order = {c.name: i for i, c in enumerate(cases())}
+    rows = sorted(done.values(), key=lambda r: order.get(r["case"], len(order)))
+    summary = summarize(rows, noise_deg, candidates, gains_first)
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=json_default))
     (out / "summary.md").write_text(summary_markdown(summary))
     return summary

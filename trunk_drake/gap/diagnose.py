@@ -98,8 +98,8 @@ def progress_lines(progress: bool | Path, stamp):
 
 def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: float | None = None, outputs=OUTPUT_NAMES,
                  candidates=None, threshold: float = 10.0, max_effects: int = 3, refine: int = 3, period: float = 20.0,
-                 fade: float = 2.0, workers: int = 2, gains_first: bool = False, progress: bool | Path = False,
-                 checkpoint: Path | None = None) -> GapDiagnosis:
+                 fade: float = 2.0, workers: int = 2, cluster: str | None = None, gains_first: bool = False,
+                 progress: bool | Path = False, checkpoint: Path | None = None) -> GapDiagnosis:
     """Diagnose the gap between `model` (with `options`, e.g. fitted reflex gains) and `trials`.
 
     `noise` (rad, scalar or per output) is the measurement noise of the angles (estimated per
@@ -108,8 +108,8 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
     simulations. An effect is claimed when it lowers the held-out chi-square of the model
     without it by more than `threshold` after a k ln N penalty; at most `max_effects`. `gains_first`: the
     gains are widened beyond the identifiable directions (as far as each further direction passes) before
-    any effect is weighed (`search.Settings`). `progress`: a line per step on stdout (True) or appended to a file.
-    `checkpoint`: a file the refits' simulations are written to as they finish (`checkpoint.SimulationLog`); rerun
+    any effect is weighed (`search.Settings`). The simulations run on `workers` local processes, or on the Dask
+    cluster at `cluster`. `progress`: a line per step on stdout (True) or appended to a file. `checkpoint`: a file the refits' simulations are written to as they finish (`checkpoint.SimulationLog`); rerun
     after an interruption, the diagnosis takes them from there and goes on where it stopped. Removed at the end.
     """
     wall = _time.perf_counter()
@@ -126,7 +126,7 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
         say(f"{len(data)} trials, noise {np.round(np.degrees(noise), 3).tolist()} deg; simulating the nominal model")
     settings = Settings(threshold=threshold, max_effects=max_effects, refine=refine, gains_first=gains_first)
     log = _log(checkpoint, diagnosis_identity(model, options, data, noise, outputs, candidates, settings), say)
-    with WorkerPool(model, workers) as simulator, log or contextlib.nullcontext():  # the log closed on any exit
+    with WorkerPool(model, workers, cluster) as simulator, log or contextlib.nullcontext():  # the log closed on any exit
         results = simulator.map(simulation_job, [(options, t, outputs, None, None) for t in data])
         for t, r in zip(data, results):
             if isinstance(r, Exception):

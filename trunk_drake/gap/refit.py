@@ -184,7 +184,7 @@ class TimeDomainFitter:
         steps the points whose options differ only in `VARIANT_FIELDS` (gains, and effects that only set those
         fields: a Jacobian's columns) run as groups (`point_jobs`) where the diagram can hold copies of the model
         (`copies_unsupported`), every other point alone."""
-        workers = self.simulator.workers if self.simulator.parallel else 1
+        workers = self.simulator.capacity
         alike: dict = {}
         for i, o in enumerate(options):
             alike.setdefault(_diagram(o), []).append(i)

@@ -214,14 +214,15 @@ def start_points(layout: GainLayout, scenario: str, n_starts: int, seed: int = 0
 
 def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_gains: dict | None = None, scenario: str = "car",
                      options: TrunkOptions | None = None,
-                     start=None, n_starts: int = 1, workers: int = 2, max_iterations: int = MAX_ITERATIONS, fd_step: float = 0.05,
+                     start=None, n_starts: int = 1, workers: int = 2, cluster: str | None = None, max_iterations: int = MAX_ITERATIONS, fd_step: float = 0.05,
                      tolerance: float = FIT_TOLERANCE, accuracy: float | None = None, seed: int = 0, progress: bool = True) -> FitResult:
     """Fit kp and kv of each muscle group to `targets` (see targets_from_trials / settling_target).
 
     `options` fixes everything else of the diagram (co-activation, bushings, pelvis mode);
     groups not in `groups` keep `fixed_gains` ({"kp": {group: value}, "kv": {...}}, else 0).
     Bounded secant Levenberg-Marquardt (see the module docstring) with a parallel
-    forward-difference Jacobian (`fd_step` in log10 units); `n_starts` starts (multi-start),
+    forward-difference Jacobian (`fd_step` in log10 units; on `workers` local processes, or on the Dask cluster at
+    `cluster`, split into as many jobs as it runs at once); `n_starts` starts (multi-start),
     the best kept. Each start stops when an accepted step lowers the cost by less than
     `tolerance` (relative) or after `max_iterations`. `accuracy`: the simulations' (None: the
     default integrator's, see `simulate`).
@@ -242,7 +243,7 @@ def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_
     counter = {"simulations": 0}
 
     problem = (targets, layout, options, accuracy)
-    pool = WorkerPool(model, workers)
+    pool = WorkerPool(model, workers, cluster)
     copies = not copies_unsupported(model, options)  # a Jacobian's points as copies of the model in one simulation
 
     def evaluate_many(points, what="cost", on=None):
@@ -251,7 +252,7 @@ def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_
         keys = [replay_key((p.tobytes(),), on) for p in points]
         todo = [(p, k) for p, k in zip(points, keys) if k not in cache]
         steps = cache[on][2] if on is not None else [None] * len(targets)
-        plan = point_jobs([p for p, _ in todo], len(targets), steps, pool.workers if pool.parallel else 1, copies)
+        plan = point_jobs([p for p, _ in todo], len(targets), steps, pool.capacity, copies)
         jobs = [([todo[i][0] for i in group] if len(group) > 1 else todo[group[0]][0], problem, k, steps[k]) for group, k in plan]
         parts = [[None] * len(targets) for _ in todo]
         with tqdm(total=len(todo) * len(targets), desc=f"  start {current['start'] + 1}/{n_starts}: {what}", unit="sim",
@@ -286,7 +287,7 @@ def fit_reflex_gains(model, targets: list[PreparedTrial], *, groups=None, fixed_
     starts = []
     if progress:
         print(f"fitting {len(layout.names)} gains to {len(targets)} target(s) ({sum(t.time.size for t in targets)} samples) "
-              f"on {max(1, workers)} worker(s); {n_starts} start(s), at most {max_iterations} iterations each", flush=True)
+              f"on {f'the cluster at {cluster}' if cluster else f'{max(1, workers)} worker(s)'}; {n_starts} start(s), at most {max_iterations} iterations each", flush=True)
     with pool:
         for k, x0 in enumerate(start_points(layout, scenario, n_starts, seed, start)):
             current["start"] = k
