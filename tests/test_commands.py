@@ -110,6 +110,22 @@ def test_diagnose_needs_two_trials(tmp_path, capsys):
     _one_error_line(capsys, "at least two trials")
 
 
+def test_diagnose_takes_the_data_presets_reflex_gains_unless_given(capsys):
+    """Without --gains the model diagnosed has the gains of the data's preset (said), not none; with neither a
+    warning says the model has no stretch reflexes."""
+    import dataclasses
+
+    from trunk_drake.commands.diagnose import nominal_gains
+
+    experiment = load_experiment([REFERENCE])
+    assert nominal_gains(experiment, None) == experiment.preset_gains() and experiment.preset_gains()["kp"]
+    assert "those of the data's preset, default" in capsys.readouterr().out
+    thesis = f"{THESIS_GAINS}#car_passenger"
+    assert nominal_gains(experiment, thesis) == load_reflex_gains(thesis)
+    with pytest.warns(UserWarning, match="no stretch reflexes"):
+        assert nominal_gains(dataclasses.replace(experiment, preset=None), None) == {}
+
+
 def test_trials_of_different_sampling_rates_are_refused(tmp_path):
     t100, t200 = np.arange(0, 2, 0.01), np.arange(0, 2, 0.005)
     for name, t in (("a.csv", t100), ("b.csv", t200)):

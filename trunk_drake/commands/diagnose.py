@@ -16,7 +16,8 @@ def add_command(sub) -> None:
     p.add_argument("--out", required=True, help="output folder (report.md, diagnosis.json, figures; while it runs, its "
                                                  "simulations, so that the same command resumes an interrupted diagnosis)")
     p.add_argument("--conditions", help="TOML with a [conditions] table (default: conditions.toml beside the data)")
-    p.add_argument("--gains", help="TOML with [kp] and [kv] per group: the model's reflex gains (e.g. a fit's gains.toml)")
+    p.add_argument("--gains", help="TOML with [kp] and [kv] per group: the model's reflex gains (e.g. a fit's gains.toml; "
+                                   "default: the gains of the data's preset)")
     dofs_argument(p, default=None)
     p.add_argument("--noise-deg", type=positive, help="angle measurement noise (default: conditions, else estimated)")
     p.add_argument("--candidates", nargs="*", choices=[e.name for e in CATALOGUE], metavar="EFFECT",
@@ -45,15 +46,12 @@ def run(args) -> int:
     from trunk_drake.gap.report import write_diagnosis
     from trunk_drake.io.experiment import load_experiment
     from trunk_drake.io.trials import available_outputs
-    from trunk_drake.simulation import load_reflex_gains
 
     experiment = load_experiment(args.data, args.conditions)
     if len(experiment.trials) < 2:
         raise ValueError(f"diagnose needs at least two trials (the effects are scored on held-out data), got "
                          f"{len(experiment.trials)}: {experiment.source}")
-    options = dict(experiment.options)
-    if args.gains:
-        options.update(load_reflex_gains(args.gains))
+    options = {**experiment.options, **nominal_gains(experiment, args.gains, say=not args.json)}
     noise = np.radians(args.noise_deg) if args.noise_deg is not None else experiment.noise_rad
     model = experiment.model(args.dofs)
     diagnosis = diagnose_gap(model, experiment.trials, TrunkOptions(**options), noise=noise,
@@ -72,6 +70,26 @@ def run(args) -> int:
     else:
         print(f"{diagnosis.verdict}\nreport: {files['report']}")
     return 0
+
+
+def nominal_gains(experiment, gains_file: str | None, say: bool = True) -> dict:
+    """The reflex gains of the model diagnosed: `gains_file`'s, else the data's preset's (said on stdout); neither:
+    none, with a warning (a model without stretch reflexes is rarely what is meant)."""
+    import warnings
+
+    from trunk_drake.simulation import load_reflex_gains
+
+    if gains_file:
+        return load_reflex_gains(gains_file)
+    preset = experiment.preset_gains()
+    if preset is not None:
+        if say:
+            print(f"reflex gains: those of the data's preset, {experiment.preset} (give --gains FILE for others, e.g. a fit's "
+                  "gains.toml)")
+        return preset
+    warnings.warn("no reflex gains: neither --gains nor a preset with reflexes in the data's conditions, so the model "
+                  "diagnosed has no stretch reflexes; give --gains FILE (e.g. a fit's gains.toml)")
+    return {}
 
 
 def _animations(model, trial, nominal, diagnosis, out) -> dict:
