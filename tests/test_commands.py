@@ -174,3 +174,34 @@ def test_model_info_says_posterior_for_a_posterior_position(capsys):
 def test_version(capsys):
     assert main(["--version"]) == 0
     assert capsys.readouterr().out.startswith("trunk-drake 0.1.0 (drake ")
+
+
+def test_diagnose_runs_end_to_end_on_data_files(tmp_path):
+    """`trunk-drake diagnose` in a short form: two 10 s-period trials written as CSV beside the reference data's
+    conditions, simulated with the preset's gains perturbed and 20 Nms/rad extra damping; two candidates."""
+    from trunk_drake.diagram import TrunkOptions
+    from trunk_drake.gap.benchmark import Case, truth_options
+    from trunk_drake.gap.synthetic import synthetic_trials
+    from trunk_drake.io.storage import write_csv
+    from trunk_drake.io.trials import LUMBAR_LEVELS
+
+    data = tmp_path / "data"
+    data.mkdir()
+    for name in ("conditions.toml", "truth_feedforward.csv"):
+        (data / name).write_text((REFERENCE / name).read_text().replace("period_s = 20.0", "period_s = 10.0"))
+    experiment = load_experiment([REFERENCE])
+    nominal = TrunkOptions(**experiment.options, **experiment.preset_gains())
+    truth = truth_options(nominal, Case("damping", "single", (("extra_damping", {"damping": 20.0}),), seed=3))
+    model = experiment.model()
+    for trial, name in zip(synthetic_trials(model, truth, [("a", 1.0, 1), ("b", 3.0, 2)], np.radians(0.05), seed=3,
+                                            period=10.0), ("a", "b")):
+        columns = {"platform_displacement_m": trial.platform_displacement, "lumbar_rotation_rad": trial.lumbar_rotation,
+                   **{f"{lvl}_rad": trial.levels[lvl] for lvl in LUMBAR_LEVELS}}
+        write_csv(data / f"trial_{name}.csv", time=trial.time, columns=columns, in_degrees=False)
+    out = tmp_path / "out"
+    assert truth.kp != nominal.kp  # the gains are mis-set too
+    assert main(["diagnose", str(data), "--out", str(out), "--candidates", "extra_damping", "reflex_delay",
+                 "--refine", "1", "--no-animation", "--json"]) == 0
+    diagnosis = json.loads((out / "diagnosis.json").read_text())
+    assert diagnosis["selected"] == ["extra_damping"], diagnosis["verdict"]
+    assert (out / "report.md").exists() and not (out / "simulations.pickle").exists()
