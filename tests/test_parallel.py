@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import time
 
@@ -88,6 +89,24 @@ def test_leaving_the_pool_by_an_exception_ends_running_jobs_at_once(sagittal):
                 raise KeyboardInterrupt  # as a Ctrl-C in the parent would
     assert time.perf_counter() - start < 30.0  # model builds included; the 60 s job did not run out
     assert not still_running(processes, timeout=0.0)  # exited (is_alive can race the executor's reaping)
+
+
+def test_a_ctrl_c_while_the_pool_closes_leaves_no_worker_behind(sagittal):
+    """The last job done, the pool shuts its workers down; a Ctrl-C then (seen in CI: a `reproduce` sweep
+    interrupted at its end left a sleeping worker, or two unreaped ones) still stops and reaps them all."""
+    with pytest.raises(KeyboardInterrupt):
+        with WorkerPool(sagittal, workers=2) as pool:
+            pool.map(_sleeps, [0.0, 0.0])
+            processes = list(pool._executor._processes.values())
+
+            def interrupted(*args, **kwargs):
+                raise KeyboardInterrupt  # as a Ctrl-C in the shutdown's wait would, the workers not yet told to exit
+            pool._executor.shutdown = interrupted
+    assert not still_running(processes, timeout=0.0), "the workers were stopped"
+    assert not multiprocessing.active_children()
+    for process in processes:  # reaped: no zombie left to the machine's init
+        with pytest.raises(ChildProcessError):
+            os.waitpid(process.pid, os.WNOHANG)
 
 
 def _raised_from(cause: BaseException) -> BaseException:

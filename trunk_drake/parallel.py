@@ -7,7 +7,8 @@ in this process on the caller's model.
 
 Ctrl-C is the parent's business: local workers ignore SIGINT (a terminal sends it to the whole
 process group), and a pool left by an exception (KeyboardInterrupt included) terminates its
-workers at once instead of letting them finish their jobs.
+workers at once instead of letting them finish their jobs; a Ctrl-C while the pool closes, after
+its last job, also stops and reaps every worker.
 """
 
 from __future__ import annotations
@@ -117,9 +118,14 @@ class WorkerPool:
         return self
 
     def __exit__(self, kind, error, tb) -> None:
-        self.close(terminate=kind is not None)
-        if caused_by_interrupt(error):  # Ctrl-C: no child process may outlive us
-            _stop(multiprocessing.active_children())
+        try:
+            self.close(terminate=kind is not None)
+        except BaseException as stopped:  # e.g. a Ctrl-C while the workers shut down after the last job
+            error = stopped
+            raise
+        finally:
+            if caused_by_interrupt(error):  # Ctrl-C: no child process may outlive us, running or exited
+                _stop(multiprocessing.active_children())
 
     def concurrently(self, calls) -> list:
         """The results of the zero-argument `calls`, in order, each run in its own thread of this process while
