@@ -1,6 +1,7 @@
 """Sim-to-real gap diagnosis: inputs, noise estimate, catalogue, and an end-to-end case."""
 
 import dataclasses
+import time
 
 import numpy as np
 import pytest
@@ -157,7 +158,8 @@ def diagnose_withheld_damping(model, checkpoint=None):
 
 def test_diagnosis_on_the_rhythm_names_withheld_damping_and_resumes_where_it_was_interrupted(tmp_path, monkeypatch):
     """The diagnosis in the coupled rhythm configuration (one lumbar_FE; levels through the level matrix), stopped
-    in the middle of its refits and rerun with the same simulation log: it takes the logged simulations and goes on."""
+    in the middle of its refits and rerun with the same simulation log: it takes the logged simulations and goes on,
+    its wall time counting the stopped run's; the log stays until the caller has saved the results."""
     from trunk_drake.gap.refit import TimeDomainFitter
 
     class Stop(Exception):
@@ -173,14 +175,19 @@ def test_diagnosis_on_the_rhythm_names_withheld_damping_and_resumes_where_it_was
         return outputs_of(self, *args, **kwargs)
 
     monkeypatch.setattr(TimeDomainFitter, "outputs_of", stopping)
+    start = time.perf_counter()
     with pytest.raises(Stop):
         diagnose_withheld_damping(model, log)
+    stopped_after = time.perf_counter() - start
     assert log.stat().st_size > 0
     monkeypatch.setattr(TimeDomainFitter, "outputs_of", outputs_of)
+    start = time.perf_counter()
     _, _, d = diagnose_withheld_damping(model, log)
     scores = d.options["scores"]
     assert 0 < scores["replayed_simulations"] < scores["simulations"]
-    assert not log.exists()  # done: the log is removed
+    assert 0 < scores["earlier_runs_wall_s"] <= stopped_after  # up to the stopped run's last logged simulation
+    assert d.wall_time_s > time.perf_counter() - start  # this run's time and the stopped run's
+    assert log.exists()  # kept until the results are saved (the caller removes it)
 
 
 def test_diagnosis_names_withheld_damping_and_shrinks_the_gap(model, tmp_path):
@@ -743,20 +750,29 @@ def test_a_simulation_log_gives_back_what_was_simulated_and_survives_a_record_cu
         out = fitter.outputs_of([points[i][0] for i in chosen], [points[i][1] for i in chosen])
         return out, pool, counter
 
+    start = time.perf_counter()
     with SimulationLog(path, "a") as log:
+        assert log.earlier_wall_s == 0.0
         first, pool, _ = run(log, [0, 1])
+    first_run = time.perf_counter() - start
     assert len(pool.jobs) == 6
     with path.open("ab") as f:
         f.write(b"\x80\x05\x95 cut short")
+    time.sleep(first_run + 0.5)  # between the runs: not counted
+    start = time.perf_counter()
     with SimulationLog(path, "a") as log:
         assert len(log.entries) == 2 and log.fresh_because is None
+        assert 0.0 < log.earlier_wall_s <= first_run  # the first run's time, up to its last record
         again, pool, counter = run(log, [0, 1, 2])
     assert len(pool.jobs) == 3  # only the new point, on each trial
     for a, b in zip(first, again[:2]):
         for x, y in zip(a, b):
             np.testing.assert_array_equal(x, y)
     assert counter == {"simulations": 9, "replayed": 6}
-    assert len(SimulationLog(path, "a").entries) == 3  # the cut record is gone, the new one readable
+    second_run = time.perf_counter() - start
+    resumed = SimulationLog(path, "a")
+    assert len(resumed.entries) == 3  # the cut record is gone, the new one readable
+    assert log.earlier_wall_s < resumed.earlier_wall_s <= log.earlier_wall_s + second_run  # the runs' times summed
     other = SimulationLog(path, "b")
     assert not other.entries and "another diagnosis" in other.fresh_because
     other.add({"k": (None, None)})

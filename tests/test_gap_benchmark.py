@@ -76,6 +76,34 @@ def test_the_summary_covers_every_case_done_in_the_folder_in_benchmark_order(tmp
     assert (tmp_path / "summary.md").read_text().count("| failed: stopped |") == 2
 
 
+def test_a_case_resumes_in_its_folder_and_its_simulation_log_goes_once_the_case_is_saved(tmp_path, monkeypatch):
+    """A case interrupted in an earlier run finds its progress file (appended to, not restarted) and its simulation log
+    (`checkpoint`, from which the diagnosis resumes) in its folder; the log is removed once the case's row is saved."""
+    from trunk_drake.gap import benchmark
+    from trunk_drake.gap.checkpoint import LOG_NAME
+
+    case = benchmark.cases()[0]
+    folder = tmp_path / "cases" / case.name
+    folder.mkdir(parents=True)
+    (folder / "progress.log").write_text("[ 99.0 s,  120 sims] a line of the interrupted run\n")
+    (folder / LOG_NAME).write_bytes(b"the interrupted run's simulations")
+    seen = {}
+
+    def job(model, args):
+        progress = args[-1]
+        seen.update(progress=progress.read_text(), log=(progress.parent / LOG_NAME).read_bytes())
+        return {**benchmark._identity(case), "selected": []}, "a diagnosis"
+
+    monkeypatch.setattr(benchmark, "_case_job", job)
+    monkeypatch.setattr(benchmark, "write_diagnosis", lambda diagnosis, folder: None)
+    monkeypatch.setattr(benchmark, "_write_summary", lambda *args: {})
+    benchmark.run_benchmark(tmp_path, only=[case.name], progress=None)
+    assert seen == {"progress": "[ 99.0 s,  120 sims] a line of the interrupted run\n",
+                    "log": b"the interrupted run's simulations"}
+    assert not (folder / LOG_NAME).exists()
+    assert '"selected": []' in (tmp_path / "results.jsonl").read_text()
+
+
 def test_cases_start_with_their_classes_mixed_and_a_folder_refuses_other_code(tmp_path):
     from trunk_drake.gap import benchmark
 

@@ -62,6 +62,7 @@ def run(args) -> int:
                              progress=not args.json, checkpoint=Path(args.out) / LOG_NAME)
     animations = {} if args.no_animation else _animations(model, experiment.trials[0], TrunkOptions(**options), diagnosis, args.out)
     files = write_diagnosis(diagnosis, args.out, animations)
+    (Path(args.out) / LOG_NAME).unlink(missing_ok=True)  # saved: an interruption before here resumed from the log
     if args.json:
         print(json.dumps({"verdict": diagnosis.verdict, "selected": diagnosis.selected, "final": diagnosis.final,
                           "shrink": {k: v for k, v in diagnosis.shrink.items() if k != "per_trial"},

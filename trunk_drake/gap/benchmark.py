@@ -213,7 +213,8 @@ def run_case(model, case: Case, nominal: TrunkOptions, noise_rad: float, workers
            "reduction_above_noise": diagnosis.shrink.get("reduction_above_noise"),
            "noise_floor_gap": diagnosis.shrink.get("noise_floor_gap"), **observability,
            "simulations": diagnosis.options["scores"]["simulations"],
-           "replayed_simulations": diagnosis.options["scores"]["replayed_simulations"], "wall_time_s": time.perf_counter() - start}
+           "replayed_simulations": diagnosis.options["scores"]["replayed_simulations"],
+           "wall_time_s": time.perf_counter() - start + diagnosis.options["scores"]["earlier_runs_wall_s"]}
     return row, diagnosis
 
 
@@ -293,10 +294,9 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
     noise = float(np.radians(noise_deg))
     pending = mixed([c for c in all_cases if c.name not in done or "error" in done[c.name]])
     in_parallel = bool(cluster) or len(pending) > 1  # the cases on the workers, else the one case's diagnosis
-    # each case's steps in a file to follow (local workers only: a cluster's may not see this folder)
+    # each case's steps in a file to follow, appended to when it resumes (local workers only: a cluster's may not see
+    # this folder), its simulations logged beside it
     logs = {c.name: None if cluster else out / "cases" / c.name / "progress.log" for c in pending}
-    for log in filter(None, logs.values()):
-        log.unlink(missing_ok=True)  # a rerun case starts its log afresh
     jobs = [(case, nominal, noise, 1 if in_parallel else workers, candidates, gains_first, logs[case.name]) for case in pending]
     if progress and not cluster and pending:
         progress(f"{len(pending)} case(s) to run; each one's steps: tail -f {out / 'cases' / 'CASE' / 'progress.log'}")
@@ -309,6 +309,8 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
             done[case.name] = row
             with results_path.open("a") as f:
                 f.write(json.dumps(row, default=json_default) + "\n")
+            if diagnosis is not None and logs[case.name] is not None:  # saved: its simulations are no longer needed
+                (logs[case.name].parent / LOG_NAME).unlink(missing_ok=True)  # (a failed case's resume when it reruns)
             if progress:
                 progress(f"[{finished + len(all_cases) - len(pending)}/{len(all_cases)}] {case.name}: " + (row.get("error") or
                          f"claimed {row['selected'] or 'none'}{', unexplained remainder' if row['unexplained'] else ''} "

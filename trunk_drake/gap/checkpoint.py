@@ -3,22 +3,23 @@ of a session, a lost worker) resumes where it stopped: rerun with the same input
 simulations instead of running them again, and goes on from there with what it would have done.
 
 The file is a stream of pickles: a header (format and identity), then one record per batch of simulations (the
-keys and results `TimeDomainFitter` caches). A record cut short by the interruption is dropped on loading. The
-identity hashes everything the results depend on (code, model, data, settings); a log of another identity is
-started afresh."""
+wall time the diagnosis had run when it was written, summed over its interrupted runs, and the keys and results
+`TimeDomainFitter` caches). A record cut short by the interruption is dropped on loading. The identity hashes
+everything the results depend on (code, model, data, settings); a log of another identity is started afresh."""
 
 from __future__ import annotations
 
 import hashlib
 import pickle
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
 
 from trunk_drake.metadata import model_fingerprint, source_fingerprint
 
-FORMAT = 1
+FORMAT = 2
 LOG_NAME = "simulations.pickle"  # the log's name in a diagnosis' output folder (a benchmark case's: beside progress.log)
 
 
@@ -39,37 +40,40 @@ def diagnosis_identity(model, options, data, noise, outputs, candidates, setting
 class SimulationLog:
     """The simulations logged at `path` for the diagnosis `identity` (`entries`: key -> result, the records that were
     read whole), and the place the next ones are appended (`add`). `fresh_because`: why an existing file was not
-    used (another identity, or unreadable), else None."""
+    used (another identity, or unreadable), else None. `earlier_wall_s`: the wall time the interrupted runs had
+    spent up to their last whole record (0 for a new log)."""
 
     def __init__(self, path, identity: str):
         self.path, self.identity = Path(path), identity
         self._lock = threading.Lock()  # the fits of a diagnosis run in threads (`WorkerPool.concurrently`)
-        self._file = None
-        self.entries, self._end, self.fresh_because = self._read()
+        self._file, self._opened = None, time.perf_counter()
+        self.entries, self.earlier_wall_s, self._end, self.fresh_because = self._read()
 
-    def _read(self) -> tuple[dict, int, str | None]:
-        """(entries, the offset after the last whole record or 0 for a new file, why an existing file is not used)."""
+    def _read(self) -> tuple[dict, float, int, str | None]:
+        """(entries, the wall time at the last whole record, the offset after it or 0 for a new file, why an existing
+        file is not used)."""
         if not self.path.exists():
-            return {}, 0, None
-        entries, end = {}, 0
+            return {}, 0.0, 0, None
+        entries, wall, end = {}, 0.0, 0
         with self.path.open("rb") as f:
             try:
                 header = pickle.load(f)
             except Exception:  # noqa: BLE001 - any unreadable start: not a log of this diagnosis
                 header = None
             if header != {"format": FORMAT, "identity": self.identity}:
-                return {}, 0, "it was written by another diagnosis (other data, settings, model or code)"
+                return {}, 0.0, 0, "it was written by another diagnosis (other data, settings, model or code)"
             end = f.tell()
             while True:
                 try:
-                    entries.update(pickle.load(f))
+                    wall, results = pickle.load(f)
                 except Exception:  # noqa: BLE001 - the end, or a record cut short by the interruption
                     break
+                entries.update(results)
                 end = f.tell()
-        return entries, end, None
+        return entries, wall, end, None
 
     def add(self, results: dict) -> None:
-        """Append one record (key -> result) and flush it to the file."""
+        """Append one record (key -> result, with the wall time so far) and flush it to the file."""
         with self._lock:
             if self._file is None:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -80,7 +84,8 @@ class SimulationLog:
                 else:
                     self._file = self.path.open("wb")
                     pickle.dump({"format": FORMAT, "identity": self.identity}, self._file)
-            pickle.dump(results, self._file, protocol=pickle.HIGHEST_PROTOCOL)
+            wall = self.earlier_wall_s + time.perf_counter() - self._opened
+            pickle.dump((wall, results), self._file, protocol=pickle.HIGHEST_PROTOCOL)
             self._file.flush()
 
     def take(self, keys) -> dict:
@@ -101,6 +106,6 @@ class SimulationLog:
                 self._file = None
 
     def remove(self) -> None:
-        """The diagnosis finished: its result is written elsewhere, the log is no longer needed."""
+        """The diagnosis' results are saved elsewhere: the log is no longer needed."""
         self.close()
         self.path.unlink(missing_ok=True)

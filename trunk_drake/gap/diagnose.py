@@ -110,7 +110,9 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
     gains are widened beyond the identifiable directions (as far as each further direction passes) before
     any effect is weighed (`search.Settings`). The simulations run on `workers` local processes, or on the Dask
     cluster at `cluster`. `progress`: a line per step on stdout (True) or appended to a file. `checkpoint`: a file the refits' simulations are written to as they finish (`checkpoint.SimulationLog`); rerun
-    after an interruption, the diagnosis takes them from there and goes on where it stopped. Removed at the end.
+    after an interruption, the diagnosis takes them from there and goes on where it stopped (its wall time and progress
+    lines count the interrupted runs' time too). Left in place: remove it (`SimulationLog.remove`, or delete the file)
+    once the results are saved, so that an interruption before that does not cost the diagnosis.
     """
     wall = _time.perf_counter()
     count = {"simulations": 0}  # shared with the fitter: every progress line says how many simulations so far
@@ -126,6 +128,7 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
         say(f"{len(data)} trials, noise {np.round(np.degrees(noise), 3).tolist()} deg; simulating the nominal model")
     settings = Settings(threshold=threshold, max_effects=max_effects, refine=refine, gains_first=gains_first)
     log = _log(checkpoint, diagnosis_identity(model, options, data, noise, outputs, candidates, settings), say)
+    wall -= log.earlier_wall_s if log is not None else 0.0  # the interrupted runs' time counts
     with WorkerPool(model, workers, cluster) as simulator, log or contextlib.nullcontext():  # the log closed on any exit
         results = simulator.map(simulation_job, [(options, t, outputs, None, None) for t in data])
         for t, r in zip(data, results):
@@ -145,9 +148,8 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
                                directions[:, rank:], say)
     found.scores.update(nominal_heldout_chi2=sum(segment_chi2(t.steady_outputs, n, noise, half(t, "test"))
                                                  for t, n in zip(data, nominal)),
-                        simulations=fitter.simulations, replayed_simulations=count["replayed"])
-    if log is not None:
-        log.remove()
+                        simulations=fitter.simulations, replayed_simulations=count["replayed"],
+                        earlier_runs_wall_s=log.earlier_wall_s if log is not None else 0.0)
     left = remainder(data, found.best.outputs, noise, outputs, noise_rel_sd)
     return _report(data, noise, nominal, space, found, left, settings, candidates, outputs, wall)
 
@@ -160,7 +162,8 @@ def _log(checkpoint, identity: str, say) -> SimulationLog | None:
     if say and log.fresh_because:
         say(f"not resuming from {checkpoint}: {log.fresh_because}; it is started afresh")
     elif say and log.entries:
-        say(f"resuming: the simulations of {len(log.entries)} refit points logged in {checkpoint} are taken, not run again")
+        say(f"resuming: the simulations of {len(log.entries)} refit points logged in {checkpoint} (after "
+            f"{log.earlier_wall_s:.0f} s of earlier runs) are taken, not run again")
     return log
 
 
