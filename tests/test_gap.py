@@ -678,6 +678,51 @@ def test_every_effect_that_passed_the_first_step_is_a_partner_candidate_refined_
     assert list(search.first_passed(ranking[:4], final)) == ["slow_activation", "trunk_in_space"]
 
 
+def test_the_effects_chosen_are_refitted_from_the_nominal_gains_and_kept_where_that_fits_better():
+    """`_Search.restart`: gains and effects trade off, and a refit can stop in another basin than the truth's; the final
+    effects are refitted from the nominal gains (x = 0 along every gain direction, the effects where the final had
+    them), kept where that fits the training halves better by more than the threshold, and each must then keep its
+    place; otherwise the final stays."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.report import _step
+    from trunk_drake.gap.search import Settings, _Search
+    from trunk_drake.gap.space import Fit, SearchSpace
+    from trunk_drake.optim.gains import GainLayout
+
+    class Fitter(FakeFitter):  # fits stay where they start; the pair fits best from the nominal gains
+        def __init__(self, basin):
+            self.basin, self.calls = basin, []
+
+        def fit(self, effects, x0, free, max_iterations=2, space=None, on=None):
+            names, x = tuple(e.name for e in effects), np.asarray(x0, float)
+            self.calls.append((names, x.tolist()))
+            chi2 = {("slow_activation", "reflex_delay"): self.basin + 1e3 * float(np.sum(x[:2] ** 2)),
+                    ("slow_activation",): 1400.0, ("reflex_delay",): 1500.0}[names]
+            return Fit(names, x, chi2 - 100.0, chi2, {n: {"value": v} for n, v in zip(names, x[2:])}, outputs=[])
+
+    layout = GainLayout(("kp.sacrospinalis", "kv.sacrospinalis"))
+    candidates = (effect("slow_activation"), effect("reflex_delay"))
+    screen = SimpleNamespace(trials=[SimpleNamespace(steady_outputs=np.zeros((1000, 1)))])
+    final = Fit(("slow_activation", "reflex_delay"), np.array([0.3, -0.4, 2.45, 0.0355]), 1150.0, 1250.0, {}, outputs=[])
+
+    def restarted(basin):
+        fitter, steps = Fitter(basin), []
+        search = _Search(SearchSpace(TrunkOptions(), layout, np.eye(2)), screen, fitter, candidates, Settings(),
+                         np.zeros((2, 0)), None)
+        search.all_gains = True
+        return search.restart(final, steps.append), steps, fitter
+
+    model, steps, fitter = restarted(1000.0)
+    assert fitter.calls[0] == (("slow_activation", "reflex_delay"), [0.0, 0.0, 2.45, 0.0355])
+    assert model.x.tolist() == [0.0, 0.0, 2.45, 0.0355] and model.heldout_chi2 == 1000.0
+    assert [s["action"] for s in steps] == ["restart", "keep"] and steps[0]["train_chi2"] == [1150.0, 900.0]
+    assert "from the nominal gains fit the training halves better (1150 -> 900)" in _step(steps[0])  # the report's line
+    model, steps, _ = restarted(1245.0)  # from the nominal gains 1145 on the training halves: not better by 10
+    assert model is final and steps == []
+
+
 def test_a_partner_refit_that_stops_short_is_overtaken_by_the_profile_over_its_parameter():
     """`_Search.profile`: besides the free refit from the partner's own first-step fit, the partner is held at 1/4 and
     3/4 of its range while the rest is refitted; the pair is freed from the held point that fits best."""

@@ -114,6 +114,10 @@ def _step(step: dict) -> str:
     if step["action"] == "polish":
         values = _values(step["values"])
         return f"polish: gains along all {step['directions']} directions refitted with the effects{': ' + values if values else ''}; model: {model}"
+    if step["action"] == "restart":
+        before, after = step["train_chi2"]
+        return (f"restart{on}: the effects refitted from the nominal gains fit the training halves better ({before:.0f} -> "
+                f"{after:.0f}): {_values(step['values'])}; model: {model}")
     if step["action"] == "partners":
         tried = ", ".join(f"{n} {v:.1f}" for n, v in step["tried"].items()) or "none refitted"
         return f"partners{on}: each first-step effect refitted with the model (dBIC {tried}): none passes; model: {model}"
