@@ -128,7 +128,8 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
         say(f"{len(data)} trials, noise {np.round(np.degrees(noise), 3).tolist()} deg; simulating the nominal model")
     settings = Settings(threshold=threshold, max_effects=max_effects, refine=refine, gains_first=gains_first)
     log = _log(checkpoint, diagnosis_identity(model, options, data, noise, outputs, candidates, settings), say)
-    wall -= log.earlier_wall_s if log is not None else 0.0  # the interrupted runs' time counts
+    earlier = log.earlier_wall_s if log is not None else 0.0
+    wall -= earlier  # the interrupted runs' time counts
     with WorkerPool(model, workers, cluster) as simulator, log or contextlib.nullcontext():  # the log closed on any exit
         results = simulator.map(simulation_job, [(options, t, outputs, None, None) for t in data])
         for t, r in zip(data, results):
@@ -149,7 +150,7 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
     found.scores.update(nominal_heldout_chi2=sum(segment_chi2(t.steady_outputs, n, noise, half(t, "test"))
                                                  for t, n in zip(data, nominal)),
                         simulations=fitter.simulations, replayed_simulations=count["replayed"],
-                        earlier_runs_wall_s=log.earlier_wall_s if log is not None else 0.0)
+                        earlier_runs_wall_s=earlier)
     left = remainder(data, found.best.outputs, noise, outputs, noise_rel_sd)
     return _report(data, noise, nominal, space, found, left, settings, candidates, outputs, wall)
 
