@@ -104,8 +104,3 @@ class SimulationLog:
             if self._file is not None:
                 self._file.close()
                 self._file = None
-
-    def remove(self) -> None:
-        """The diagnosis' results are saved elsewhere: the log is no longer needed."""
-        self.close()
-        self.path.unlink(missing_ok=True)

@@ -109,10 +109,11 @@ def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: f
     without it by more than `threshold` after a k ln N penalty; at most `max_effects`. `gains_first`: the
     gains are widened beyond the identifiable directions (as far as each further direction passes) before
     any effect is weighed (`search.Settings`). The simulations run on `workers` local processes, or on the Dask
-    cluster at `cluster`. `progress`: a line per step on stdout (True) or appended to a file. `checkpoint`: a file the refits' simulations are written to as they finish (`checkpoint.SimulationLog`); rerun
-    after an interruption, the diagnosis takes them from there and goes on where it stopped (its wall time and progress
-    lines count the interrupted runs' time too). Left in place: remove it (`SimulationLog.remove`, or delete the file)
-    once the results are saved, so that an interruption before that does not cost the diagnosis.
+    cluster at `cluster`. `progress`: a line per step on stdout (True) or appended to a file. `checkpoint`: a file the
+    refits' simulations are written to as they finish (`checkpoint.SimulationLog`); rerun after an interruption, the
+    diagnosis takes them from there and goes on where it stopped (its wall time and progress lines count the
+    interrupted runs' time too). Left in place: delete it once the results are saved, so that an interruption before
+    that does not cost the diagnosis.
     """
     wall = _time.perf_counter()
     count = {"simulations": 0}  # shared with the fitter: every progress line says how many simulations so far
