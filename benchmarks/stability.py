@@ -4,7 +4,8 @@ the thesis preset; prints JSON.
 The report: closed-loop equilibrium near upright, static energy Hessian, characteristic roots
 with the one-sided branches of a real rightmost root, and the three critical values by
 bisection (co-activation, reflex gain scale, bushing stiffness). Model loading is timed
-separately. Load-independent measures: diagram derivative evaluations and characteristic-root
+separately (the second preset's model reuses what the first load cached, so its load time is not a
+load from scratch). Load-independent measures: diagram derivative evaluations and characteristic-root
 solves. Target (the performance budget): 5 s for the report.
 """
 
