@@ -1,6 +1,6 @@
 """Does a published case's final model lie in another basin than its truth? The training and held-out chi2 along the
 straight line (gain coordinates and effect coordinates) from the final to the truth, and the final's effects
-refitted from the nominal gains (`search.polish_fit`, the search's rounds) as `_Search.restart` does.
+refitted from the nominal gains (`search.nominal_start`, `search.polish_fit`) as `_Search.restart` does.
 
     python analyses/gap_restart_check.py CASE RUN_FOLDER   # e.g. docs/gap_benchmark/search_640a2ea
 
@@ -19,7 +19,7 @@ import numpy as np
 from trunk_drake.gap.benchmark import THRESHOLD, published_case, select_cases
 from trunk_drake.gap.measures import remainder
 from trunk_drake.gap.refit import TimeDomainFitter
-from trunk_drake.gap.search import polish_fit
+from trunk_drake.gap.search import nominal_start, polish_fit
 from trunk_drake.io.trials import OUTPUT_NAMES
 from trunk_drake.parallel import WorkerPool
 
@@ -38,7 +38,7 @@ def main(name: str, folder: str) -> None:
         for t in (0.0, 0.25, 0.5, 0.75, 1.0):
             fit = fitter.fit(effects, x + t * (truth - x), [], space=space)
             print(json.dumps({"towards_truth": t, "train": fit.train_chi2, "heldout": fit.heldout_chi2}), flush=True)
-        fit = polish_fit(fitter, effects, np.concatenate([np.zeros(space.rank), x[space.rank:]]), space, THRESHOLD)
+        fit = polish_fit(fitter, effects, nominal_start(x, space), space, THRESHOLD)
         left = remainder(case["data"], fit.outputs, case["noise"], OUTPUT_NAMES)
         print(json.dumps({"restarted": fit.values, "train": fit.train_chi2, "heldout": fit.heldout_chi2,
                           "remainder_is_noise": left["is_noise"], "chi2_per_sample": left["chi2_per_sample"],

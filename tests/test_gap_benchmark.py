@@ -116,6 +116,19 @@ def test_cases_start_with_their_classes_mixed_and_a_folder_refuses_other_code(tm
         benchmark._check_settings(tmp_path / "settings.json", {**settings, "code": "b"})
 
 
+def test_a_resumed_run_takes_up_the_cases_it_was_running_before_new_ones():
+    from trunk_drake.gap import benchmark
+
+    order = benchmark.mixed(benchmark.cases())
+    # two workers: order[0] and order[1] started, order[2] when order[0] finished, order[3] when order[1] finished,
+    # order[4] when order[3] finished; the run stopped with order[2] and order[4] running
+    done = {c.name: {"case": c.name} for c in (order[0], order[1], order[3])}
+    done[order[5].name] = {"case": order[5].name, "error": "worker lost"}
+    pending = benchmark.pending_cases(benchmark.cases(), done)
+    assert [c.name for c in pending[:2]] == [order[2].name, order[4].name]
+    assert order[5] in pending and len(pending) == len(order) - 3
+
+
 def test_the_code_fingerprint_ignores_docstrings_and_comments_only(tmp_path):
     from trunk_drake.metadata import source_fingerprint
 

@@ -292,7 +292,7 @@ def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE
     all_cases = select_cases(only) if only else cases(quick)
     model, nominal = truth_configuration()
     noise = float(np.radians(noise_deg))
-    pending = mixed([c for c in all_cases if c.name not in done or "error" in done[c.name]])
+    pending = pending_cases(all_cases, done)
     in_parallel = bool(cluster) or len(pending) > 1  # the cases on the workers, else the one case's diagnosis
     # each case's steps in a file to follow, appended to when it resumes (local workers only: a cluster's may not see
     # this folder), its simulations logged beside it
@@ -349,6 +349,13 @@ def mixed(cases_: list[Case]) -> list[Case]:
         keyed.append((seen[c.kind], CLASSES.index(c.kind)))
         seen[c.kind] += 1
     return [c for _, c in sorted(zip(keyed, cases_), key=lambda kc: kc[0])]
+
+
+def pending_cases(all_cases: list[Case], done: dict) -> list[Case]:
+    """The cases of `all_cases` not done (or failed), in the run's one mixed order (`mixed` of all of them): a resumed
+    run takes up the cases it was running first, since they were the first not done in that order. (Mixing only the
+    cases left reorders them: it had put new cases before the interrupted ones.)"""
+    return [c for c in mixed(all_cases) if c.name not in done or "error" in done[c.name]]
 
 
 SETTINGS_BEFORE_RECORDED = {"gains_first": False}  # settings.json of folders started before these were recorded

@@ -495,8 +495,8 @@ class _Search:
         2.5), and more rounds from it gained 3-4 each; from the nominal gains the polish reached 17,827 (41.3 ms, 2.47) in
         189 simulations. Kept where it fits the training halves better by more than the threshold; then every effect
         must keep its place there (`backward`)."""
-        x0 = np.concatenate([np.zeros(self.space.rank), final.x[self.space.rank:]])
-        fit = polish_fit(self.fitter, self.effects(final.effects), x0, self.space, self.settings.threshold)
+        fit = polish_fit(self.fitter, self.effects(final.effects), nominal_start(final.x, self.space), self.space,
+                         self.settings.threshold)
         if fit.outputs is None or fit.train_chi2 >= final.train_chi2 - self.settings.threshold:
             self.say("restarted from the nominal gains: no better on the training halves"
                      + ("" if fit.outputs is None else f" ({fit.train_chi2:.0f} against {final.train_chi2:.0f})"))
@@ -530,6 +530,12 @@ class _Search:
                 "values": fit.values})
         self.say(f"polished along all {full.rank} gain directions: {fit.values}, held-out chi2 {fit.heldout_chi2:.0f}")
         return self.backward(fit, record, floor=0)
+
+
+def nominal_start(x, space: SearchSpace) -> np.ndarray:
+    """`x` (gain coordinates of `space`, then effect coordinates) with its gains back at the nominal ones: the
+    restart's starting point."""
+    return np.concatenate([np.zeros(space.rank), np.asarray(x, float)[space.rank:]])
 
 
 def polish_fit(fitter: TimeDomainFitter, effects, x0, space: SearchSpace, threshold: float, free=None,
