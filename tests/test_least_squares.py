@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from trunk_drake.optim import least_squares
 from trunk_drake.optim.least_squares import finite_difference_jacobian, inverse_or_inf, levenberg_marquardt
 
 
@@ -55,3 +56,45 @@ def test_finite_difference_jacobian_forward_backward_central_and_columns():
     only = finite_difference_jacobian(residuals, x, 1e-6, columns=[1], r0=residuals([x])[0])
     assert np.all(only[:, 0] == 0.0)
     np.testing.assert_allclose(only[:, 1], exact[:, 1], atol=1e-5)
+
+
+def _step_cost(J, r, mu, d):
+    return 0.5 * np.sum((J @ d + r) ** 2) + 0.5 * mu * d @ d
+
+
+def test_a_failed_step_qp_is_solved_as_bounded_least_squares_with_the_same_answer(monkeypatch):
+    rng = np.random.default_rng(3)
+    J, r = rng.normal(size=(40, 5)), 3.0 * rng.normal(size=40)
+    lower, upper = np.array([-0.1, -1.0, 0.0, -1.0, 0.2]), np.array([0.1, 1.0, 1.0, -1.0, 0.2 + 1e-3])  # d3 fixed
+    qp = least_squares._bounded_step(J, r, 0.5, lower, upper)
+    assert np.sum(np.isclose(qp, lower) | np.isclose(qp, upper)) >= 3  # bounds active, so the test means something
+
+    class Failed:
+        def is_success(self):
+            return False
+
+        def get_solution_result(self):
+            return "kSolverSpecificError"
+
+    monkeypatch.setattr(least_squares, "Solve", lambda prog: Failed())
+    fallback = least_squares._bounded_step(J, r, 0.5, lower, upper)
+    np.testing.assert_allclose(fallback, qp, atol=1e-7)
+    assert fallback[3] == -1.0
+
+
+def test_a_step_on_a_jacobian_scaled_over_14_decades_is_solved_not_raised():
+    """Clarabel stops with InsufficientProgress on this one (drake 1.x); it crashed the gap case
+    outside_coactivation_factor1.5 in the all-case run on ca892f7."""
+    rng = np.random.default_rng(21)
+    J = rng.normal(size=(400, 8)) * 10.0 ** rng.uniform(-4, 10, size=8)
+    J[:, 1] = J[:, 0] * (1 + 1e-9)
+    r = rng.normal(size=400) * 10.0 ** rng.uniform(0, 8)
+    mu = 10.0 ** rng.uniform(-15, 5)
+    lower, upper = -10.0 ** rng.uniform(-8, 2, size=8), 10.0 ** rng.uniform(-8, 2, size=8)
+    lower[2] = 0.0
+    d = least_squares._bounded_step(J, r, mu, lower, upper)
+    assert np.all((d >= lower) & (d <= upper))
+    unconstrained = np.clip(np.linalg.lstsq(np.vstack([J, np.sqrt(mu) * np.eye(8)]), -np.concatenate([r, np.zeros(8)]),
+                                            rcond=None)[0], lower, upper)
+    cost = _step_cost(J, r, mu, d)
+    assert cost <= min(_step_cost(J, r, mu, np.zeros(8)), _step_cost(J, r, mu, unconstrained)) * (1 + 1e-9)
