@@ -19,20 +19,15 @@ THESIS = ("The force disturbance (platform acceleration x 10,000 kg) has the cou
 
 
 def run(out_dir, model=None, workers=2, inputs=None, duration=None, seed=0):
-    if model is None:
-        from trunk_drake.model.trunk_model import load_model
-
-        model = load_model("sagittal")
     signal = make_multisine(f_max=1.0, seed=seed, fade_shape="quintic")
     duration = duration or signal.duration
-    final, warning = thesis.thesis_final_options(model)
-    configs = {"thesis final model": (model, {**final, **thesis.thesis_gains()}),
-               "reference-data truth": (thesis.reference_model(), {**thesis.reference_truth_options(), **thesis.truth_gains()})}
+    configs, warning = thesis.final_and_truth_configurations(model)
     traces = thesis.run_cases_per_model(
         [(config_model, [{"label": f"{name}, {pelvis}", "simulate": dict(duration=duration, perturbation=signal,
-                                                                         pelvis_mass=THESIS_PELVIS_MASS, **{**options, "pelvis": pelvis})}
+                                                                         pelvis_mass=THESIS_PELVIS_MASS,
+                                                                         **{**options, **gains, "pelvis": pelvis})}
                          for pelvis in ("force", "prescribed")])
-         for name, (config_model, options) in configs.items()], workers)
+         for name, (config_model, options, gains) in configs.items()], workers)
 
     t = np.linspace(0.0, duration, int(round(duration * 100)) + 1)
     x, _, a = signal.evaluate(t)

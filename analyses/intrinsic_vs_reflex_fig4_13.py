@@ -33,15 +33,9 @@ def _verdict(m) -> str:
 
 
 def run(out_dir, model=None, workers=2, inputs=None, duration=None, seed=0):
-    if model is None:
-        from trunk_drake.model.trunk_model import load_model
-
-        model = load_model("sagittal")
     signal = make_multisine(f_max=1.0, seed=seed, fade_shape="quintic")
     duration = duration or signal.duration
-    final, warning = thesis.thesis_final_options(model)
-    configs = {"thesis final model": (model, final, thesis.thesis_gains()),
-               "reference-data truth": (thesis.reference_model(), thesis.reference_truth_options(), thesis.truth_gains())}
+    configs, warning = thesis.final_and_truth_configurations(model)
     traces = thesis.run_cases_per_model(
         [(config_model, [{"label": f"{name}, {kind}", "simulate": dict(duration=duration, perturbation=signal, **options, **gains)}
                          for kind, gains in (("intrinsic only", {"kp": 0.0, "kv": 0.0}), ("intrinsic + reflexes", reflex))])

@@ -590,6 +590,7 @@ def test_after_the_polish_the_selection_goes_on_on_every_gain_direction():
     final = select(search, polished, steps.append)
     assert screened == [["upper_body_mass"]] and final.effects == ("reflex_delay", "upper_body_mass")
     assert [s["action"] for s in steps] == ["add", "keep"] and all(s["directions"] == 2 for s in steps)
+    assert steps[0]["ranking"] == [{"effect": "upper_body_mass"}]  # the step's ranking, recorded with it
     assert steps[0]["delta_bic"] == pytest.approx(350.0 - search.penalty) and steps[0]["beats_gain_rival_by"] is None
     assert all(free == list(range(len(free))) and n == POLISH_ITERATIONS for _, free, n in fitter.calls)
     assert [c[0] for c in fitter.calls[:2]] == [("reflex_delay", "upper_body_mass")] * 2  # the joint refit, 2 rounds
@@ -849,3 +850,35 @@ def test_an_effects_coordinates_invert_its_values():
     for e in CATALOGUE:
         for x in ([p.start for p in e.parameters], [p.lower for p in e.parameters], [p.upper for p in e.parameters]):
             np.testing.assert_allclose(e.coordinates(e.values(x)), x, rtol=1e-12, atol=1e-12, err_msg=e.name)
+
+
+def test_the_report_shows_the_ranking_that_decided_the_selection_beside_the_first_steps(tmp_path, monkeypatch):
+    """Where the first step's leaders stood in for mis-set gains and the truth was claimed later (on every gain
+    direction), the report shows that step's ranking too, and its plot draws it: the claimed effect leads it."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.report import _plot_ranking, markdown
+
+    first = [{"effect": "short_range_stiffness", "delta_bic": 7783.1, "linear_delta_bic": 6980.4, "status": "refined"},
+             {"effect": "golgi_feedback", "linear_delta_bic": 6708.6, "status": "screened"}]
+    later = [{"effect": "golgi_feedback", "delta_bic": 44.9, "checked_delta_bic": 30.2, "linear_delta_bic": 2.1,
+              "values": {"gain": 0.105}, "status": "refined"},
+             {"effect": "short_range_stiffness", "checked_delta_bic": -120.0, "linear_delta_bic": 1.0, "status": "screened"}]
+    steps = [{"action": "stop", "model": [], "best_candidate": "short_range_stiffness", "delta_bic": 7783.1, "matched_by_gains": []},
+             {"action": "polish", "directions": 14, "model": [], "values": {}},
+             {"action": "add", "effect": "golgi_feedback", "delta_bic": 44.9, "beats_gain_rival_by": None, "model": ["golgi_feedback"],
+              "values": {"golgi_feedback": {"gain": 0.105}}, "directions": 14, "ranking": later}]
+    d = SimpleNamespace(verdict="missing effect: golgi_feedback", noise_rad=[0.0017], where={"per_output": {}, "per_frequency": {}},
+                        options={"held_out": "halves", "scores": {"simulations": 10}, "threshold": 10.0}, wall_time_s=1.0,
+                        ranking=first, steps=steps, selected=["golgi_feedback"], shrink={}, remainder={}, final={})
+    text = markdown(d, {"frf_plot": "f.png", "ranking_plot": "r.png"})
+    assert "step 3 (claimed golgi_feedback): each candidate added to the gains on all 14 gain directions" in text
+    decided = text.split("The ranking that decided the selection")[1]
+    assert decided.index("| 1 | golgi_feedback | 44.9 | 30.2 | 2.1 | gain = 0.105 |") < decided.index("| 2 | short_range_stiffness | - | -120.0 |")
+    assert "| 2 | golgi_feedback | - | - | 6708.6 |" in text  # the first step's ranking stays
+    import matplotlib.pyplot as plt
+
+    drawn, barh = [], plt.Axes.barh
+    monkeypatch.setattr(plt.Axes, "barh", lambda ax, names, *args, **kwargs: drawn.append(list(names)) or barh(ax, names, *args, **kwargs))
+    _plot_ranking(d, tmp_path / "r.png")
+    assert drawn == [["short_range_stiffness", "golgi_feedback"]]  # bottom to top: the claimed effect on top

@@ -30,10 +30,11 @@ def test_signature_is_the_noise_normalised_difference_and_noise_is_added():
 
 def test_summary_rates_per_class_and_unobservable_cases_left_out():
     def row(case, kind, truth, first, selected, unexplained=False, observable=True, distinguishable=True):
+        step = {"action": "add", "effect": selected[0]} if selected else {"action": "stop"}
         return {"case": case, "kind": kind, "truth": truth, "withheld": [[n, {}] for n in truth], "ranked_first": first,
-                "selected": selected, "unexplained": unexplained, "observable": observable, "verdict": "v",
-                "reduction": 0.5, "reduction_above_noise": 0.9, "wall_time_s": 1.0, "signature_chi2": 100.0,
-                "distinguishable_from_gains": distinguishable}
+                "ranking": [{"effect": first}], "steps": [step], "selected": selected, "unexplained": unexplained,
+                "observable": observable, "verdict": "v", "reduction": 0.5, "reduction_above_noise": 0.9,
+                "wall_time_s": 1.0, "signature_chi2": 100.0, "distinguishable_from_gains": distinguishable}
     rows = [row("d1", "single", ["reflex_delay"], "reflex_delay", ["reflex_delay"]),
             row("g1", "single", ["golgi_feedback"], "reflex_delay", [], distinguishable=False),
             row("g2", "single", ["bushing_stiffness"], "reflex_delay", ["reflex_delay"], distinguishable=False),
@@ -52,6 +53,7 @@ def test_summary_rates_per_class_and_unobservable_cases_left_out():
     # as well explained by mis-set gains: out of the single rates, on their own (g2 claims another effect)
     assert s["as_gains"] == ["g1", "g2"] and m["as_gains_nothing_else"]["failed"] == ["g2"]
     assert m["single_ranked_first"]["rate"] == 2 / 3 and m["single_ranked_first"]["failed"] == ["d3"]
+    assert m["single_ranked_first_alone"] == m["single_ranked_first"]  # each decided in its first step
     assert m["single_exactly_claimed"]["rate"] == 1 / 3 and m["single_exactly_claimed"]["failed"] == ["d2", "d3"]
     assert m["pair_both_exactly"]["rate"] == 0.5 and m["none_no_claim"]["rate"] == 0.5
     assert m["outside_honest"]["rate"] == 2 / 3 and m["outside_honest"]["failed"] == ["o2"]
@@ -60,6 +62,34 @@ def test_summary_rates_per_class_and_unobservable_cases_left_out():
     assert s["gap_reduction_above_noise"]["cases"] == 2  # exactly identified: d1 and p1
     text = summary_markdown(s)
     assert "unobservable" in text and "| p2 | pair |" in text and "o2" in text and "100 (as gains)" in text
+
+
+def test_ranked_first_reads_the_ranking_that_decided_the_selection():
+    """The first step ranks each candidate alone against the gains refitted along the identifiable directions; where
+    the gains are mis-set further, the effects that mimic them lead there, lose to the gain rival, and the truth is
+    claimed later on more gain directions. "Ranked first" reads the ranking of the step that added the first effect
+    (a partner's does not count), else of the last step that weighed the candidates; the first step's is reported
+    beside it. A later step recorded without its ranking is not counted as ranked first."""
+    from trunk_drake.gap.search import deciding_ranking
+
+    first = [{"effect": "short_range_stiffness"}, {"effect": "golgi_feedback"}]
+    later = [{"effect": "golgi_feedback"}, {"effect": "seat_compliance"}]
+    stop, gains = {"action": "stop"}, {"action": "gains"}
+    claimed = [stop, gains, {"action": "polish"}, {"action": "add", "effect": "golgi_feedback", "ranking": later},
+               {"action": "stop", "ranking": first[::-1]}, {"action": "partners"}]
+    assert deciding_ranking(claimed, first) == (3, later)
+    assert deciding_ranking([stop, gains, {"action": "stop", "ranking": later}], first) == (2, later)
+    assert deciding_ranking([{"action": "add", "effect": "e"}, {"action": "add", "partner_of": ["e"]}], first) == (0, first)
+    assert deciding_ranking([stop, {"action": "add", "effect": "golgi_feedback"}], first) == (1, None)
+    assert deciding_ranking([gains], first) == (None, None)
+
+    def row(case, steps):
+        return {"case": case, "kind": "single", "truth": ["golgi_feedback"], "withheld": [["golgi_feedback", {}]],
+                "ranked_first": "short_range_stiffness", "ranking": first, "steps": steps, "selected": ["golgi_feedback"],
+                "unexplained": False, "verdict": "v", "reduction": 1.0, "reduction_above_noise": 1.0, "wall_time_s": 1.0}
+    m = summarize([row("recorded", claimed), row("unrecorded", [stop, {"action": "add", "effect": "golgi_feedback"}])], 0.1)["measures"]
+    assert m["single_ranked_first"]["failed"] == ["unrecorded"]
+    assert m["single_ranked_first_alone"]["failed"] == ["recorded", "unrecorded"]
 
 
 def test_the_summary_covers_every_case_done_in_the_folder_in_benchmark_order(tmp_path):

@@ -67,6 +67,19 @@ def thesis_final_options(model) -> tuple[dict, str | None]:
             "damping": reference_value("intervertebral.thesis_fitted.damping"), "feedforward": feedforward}, warning
 
 
+def final_and_truth_configurations(model=None) -> tuple[dict, str | None]:
+    """The two trunk configurations the thesis' disturbance figures compare, {name: (model, options without gains,
+    reflex gains)}: the thesis' final model on `model` (default: the sagittal levels) and the synthetic reference
+    data's truth on its own model; and the final model's co-activation warning."""
+    if model is None:
+        from trunk_drake.model.trunk_model import load_model
+
+        model = load_model("sagittal")
+    final, warning = thesis_final_options(model)
+    return {"thesis final model": (model, final, thesis_gains()),
+            "reference-data truth": (reference_model(), reference_truth_options(), truth_gains())}, warning
+
+
 def reference_experiment():
     """The synthetic reference data's first trial with its conditions (models/reference)."""
     from trunk_drake.data import models_dir

@@ -12,6 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from trunk_drake.metadata import json_default  # noqa: E402
+from trunk_drake.gap.search import deciding_ranking  # noqa: E402
 
 
 def write_diagnosis(diagnosis, out_dir, animations: dict[str, Path] | None = None) -> dict[str, Path]:
@@ -54,17 +55,18 @@ def markdown(d, names: dict) -> str:
             where += f"; power at non-excited lines / excited: data {ratio[0]:.2g}, model {ratio[1]:.2g}"
         lines.append(f"- `{Path(trial).name}`: {where}")
     lines += ["", f"![FRF errors]({names['frf_plot']})", "", "## 2. Which unmodelled effect", "",
-              "Each candidate is refitted with the nominal reflex gains and scored on held-out data: "
+              "First step: each candidate is refitted with the nominal reflex gains and scored on held-out data: "
               "dBIC = chi2(gains-only refit) - chi2(candidate) - k ln N (positive favours the candidate; "
-              f"claimed above {d.options['threshold']:g}).", "",
-              "| rank | effect | dBIC (nonlinear refit) | dBIC (simulated at the best of three starts) | dBIC (linear screening) | "
-              "parameters (refitted, else simulated, else linear) | status |",
-              "|---|---|---|---|---|---|---|"]
-    for k, r in enumerate(d.ranking, 1):
-        values = r.get("values") or r.get("checked_values") or r.get("linear_values") or {}
-        text = ", ".join(f"{n} = {v:.4g}" for n, v in values.items())
-        dbic, checked = (f"{r[key]:.1f}" if key in r else "-" for key in ("delta_bic", "checked_delta_bic"))
-        lines.append(f"| {k} | {r['effect']} | {dbic} | {checked} | {r['linear_delta_bic']:.1f} | {text} | {r.get('status', '')} |")
+              f"claimed above {d.options['threshold']:g}).", "", *_ranking_table(d.ranking)]
+    k, deciding = deciding_ranking(d.steps, d.ranking)
+    if deciding is not None and deciding is not d.ranking:
+        step = d.steps[k]
+        claim = f"claimed {step['effect']}" if step["action"] == "add" else "claimed none"
+        lines += ["", f"The ranking that decided the selection, step {k + 1} ({claim}): each candidate added to "
+                  f"{' + '.join(step['model'][:-1] if step['action'] == 'add' else step['model']) or 'the gains'}"
+                  f"{' on all ' + str(step['directions']) + ' gain directions' if 'directions' in step else ''}, dBIC "
+                  "against that model. The first step weighs each candidate against the gains refitted along the identifiable "
+                  "directions only, and effects that stand in for gains mis-set further can lead it.", "", *_ranking_table(deciding)]
     lines += ["", f"![ranking]({names['ranking_plot']})", "", "Selection, step by step (each effect's own held-out dBIC "
               "against the model without it):", ""]
     lines += [f"{k}. {_step(step)}" + (f" ({step['simulations']} simulations so far)" if "simulations" in step else "")
@@ -91,6 +93,18 @@ def markdown(d, names: dict) -> str:
         lines += ["Selected model (fitted on the training halves):", "",
                   *(f"- {n}: " + ", ".join(f"{k} = {v:.4g}" for k, v in vals.items()) for n, vals in d.final["effects"].items()), ""]
     return "\n".join(lines) + "\n"
+
+
+def _ranking_table(rows: list[dict]) -> list[str]:
+    """Candidate rows (best first) as a markdown table."""
+    lines = ["| rank | effect | dBIC (nonlinear refit) | dBIC (simulated at the best of three starts) | dBIC (linear screening) | "
+             "parameters (refitted, else simulated, else linear) | status |", "|---|---|---|---|---|---|---|"]
+    for k, r in enumerate(rows, 1):
+        values = r.get("values") or r.get("checked_values") or r.get("linear_values") or {}
+        text = ", ".join(f"{n} = {v:.4g}" for n, v in values.items())
+        dbic, checked = (f"{r[key]:.1f}" if r.get(key) is not None else "-" for key in ("delta_bic", "checked_delta_bic"))
+        lines.append(f"| {k} | {r['effect']} | {dbic} | {checked} | {r['linear_delta_bic']:.1f} | {text} | {r.get('status', '')} |")
+    return lines
 
 
 def _values(by_effect: dict) -> str:
@@ -168,13 +182,18 @@ def _plot_where(d, path) -> Path:
 
 
 def _plot_ranking(d, path) -> Path:
+    """The ranking that decided the selection (`deciding_ranking`; the first step's where no later one did)."""
+    k, rows = deciding_ranking(d.steps, d.ranking)
+    rows = d.ranking if rows is None else rows
     fig, ax = plt.subplots(figsize=(7, 3.5))
-    names = [r["effect"] for r in d.ranking]
-    values = [r.get("delta_bic", r["linear_delta_bic"]) for r in d.ranking]
-    colors = ["C3" if n in d.selected else ("C0" if "delta_bic" in r else "0.7") for n, r in zip(names, d.ranking)]
+    names = [r["effect"] for r in rows]
+    values = [next(r[k] for k in ("delta_bic", "checked_delta_bic", "linear_delta_bic") if r.get(k) is not None) for r in rows]
+    colors = ["C3" if n in d.selected else ("C0" if r.get("delta_bic") is not None else "0.7") for n, r in zip(names, rows)]
+    if rows is not d.ranking:
+        ax.set_title(f"step {k + 1} of the selection", fontsize=9)
     ax.barh(names[::-1], np.sign(values[::-1]) * np.log10(1 + np.abs(values[::-1])), color=colors[::-1])
     ax.axvline(np.log10(1 + d.options["threshold"]), color="k", ls="--", lw=0.8)
-    ax.set_xlabel("sign(dBIC) log10(1 + |dBIC|)  (red: claimed, grey: screening only)")
+    ax.set_xlabel("sign(dBIC) log10(1 + |dBIC|)  (red: claimed, blue: refitted, grey: simulated or screened only)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -581,7 +581,7 @@ def search_effects(space: SearchSpace, screen: LinearScreen, fitter: TimeDomainF
         s.say(f"gains first: refitted along {wider.rank} directions (dBIC {dbic:.1f}): held-out chi2 {base.heldout_chi2:.0f}")
     ranking = s.screen_additions(base, list(s.candidates))
     singles = s.refine(base, ranking)
-    ranking.sort(key=lambda r: (-r.get("delta_bic", -np.inf), -r.get("checked_delta_bic", -np.inf), -r["linear_delta_bic"]))
+    ranking[:] = ranked(ranking)
     s.models[frozenset()] = base
 
     current = select(s, base, record, first=(ranking, singles))
@@ -616,6 +616,7 @@ def select(s: _Search, current: Fit, record, first: tuple | None = None, dropped
     own dBIC. Returns the model where no candidate passes or `max_effects` is reached."""
     dropped = set() if dropped is None else set(dropped)
     while len(current.effects) < s.settings.max_effects:
+        scored = {}  # the step's ranking, recorded with it (the first step's is the search's `ranking`)
         if first is not None:
             (rows, fits), first = first, None
         else:
@@ -626,13 +627,14 @@ def select(s: _Search, current: Fit, record, first: tuple | None = None, dropped
             s.models[frozenset(current.effects)] = current
             rows = s.screen_additions(current, remaining)
             fits = s.refine(current, rows)
+            scored = {"ranking": [{k: r[k] for k in RANKING_KEYS if k in r} for r in ranked(rows)]}
         chosen, tried = s.claim(current, fits)
         if chosen is None:
             best = max(fits, key=lambda n: s.dbic(current, fits[n], s.candidates[n]), default=None)
             record({"action": "stop", "model": list(current.effects), "best_candidate": best,
                     "delta_bic": s.dbic(current, fits[best], s.candidates[best]) if best else None,
                     "matched_by_gains": tried,  # each passed its dBIC and failed against the gains
-                    "heldout_chi2": current.heldout_chi2, **s.on_all_gains()})
+                    "heldout_chi2": current.heldout_chi2, **s.on_all_gains(), **scored})
             break
         dbic, name = chosen["delta_bic"], chosen["effect"]
         joint = s.joint(current.effects + (name,), fits[name].x)
@@ -640,8 +642,34 @@ def select(s: _Search, current: Fit, record, first: tuple | None = None, dropped
         s.models[frozenset(current.effects)] = current
         record({"action": "add", "effect": name, "delta_bic": dbic, "beats_gain_rival_by": chosen["beats_gain_rival_by"],
                 "on_widened_gains": chosen.get("on_widened_gains"), "model": list(current.effects),
-                "heldout_chi2": current.heldout_chi2, "values": current.values, **s.on_all_gains()})
+                "heldout_chi2": current.heldout_chi2, "values": current.values, **s.on_all_gains(), **scored})
         s.say(f"added {name} (dBIC {dbic:.1f}); joint refit: held-out chi2 {current.heldout_chi2:.0f}")
         current, gone = s.backward(current, record, floor=1)  # every selected effect must still earn its place
         dropped |= gone
     return current
+
+
+# What a step's ranking keeps of each candidate's row (`select`): its scores and the values behind them.
+RANKING_KEYS = ("effect", "delta_bic", "checked_delta_bic", "linear_delta_bic", "values", "checked_values", "linear_values",
+                "status")
+
+
+def ranked(rows: list[dict]) -> list[dict]:
+    """Candidate rows best first: by the refit's held-out dBIC, then the check's (simulated), then the linear screening's."""
+    return sorted(rows, key=lambda r: (-r.get("delta_bic", -np.inf), -r.get("checked_delta_bic", -np.inf),
+                                       -r.get("linear_delta_bic", -np.inf)))
+
+
+def deciding_ranking(steps: list[dict], ranking: list[dict]) -> tuple[int | None, list[dict] | None]:
+    """The selection step whose ranking decided the diagnosis (its index in `steps`) and that ranking: the step that
+    added the first effect, else the last that weighed the candidates (and claimed none). The first step ranks every
+    candidate alone (`ranking`) against the gains refitted along the identifiable directions; where the gains are
+    mis-set further, effects that mimic them lead it and lose to the gain rival, and the claim comes later, on more
+    gain directions: golgi_feedback_gain0.15 ranked the Golgi feedback eighth of 11 there and claimed it on all 14 gain
+    directions. Later steps record their ranking (`select`); a step recorded without it gives None."""
+    weighed = [k for k, step in enumerate(steps) if step["action"] in ("add", "stop") and "partner_of" not in step]
+    if not weighed:
+        return None, None
+    added = [k for k in weighed if steps[k]["action"] == "add"]
+    k = added[0] if added else weighed[-1]
+    return k, ranking if k == weighed[0] else steps[k].get("ranking")
