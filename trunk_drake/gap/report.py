@@ -187,13 +187,13 @@ def _plot_ranking(d, path) -> Path:
     rows = d.ranking if rows is None else rows
     fig, ax = plt.subplots(figsize=(7, 3.5))
     names = [r["effect"] for r in rows]
-    values = [next(r[k] for k in ("delta_bic", "checked_delta_bic", "linear_delta_bic") if r.get(k) is not None) for r in rows]
+    values = [next(r[key] for key in ("delta_bic", "checked_delta_bic", "linear_delta_bic") if r.get(key) is not None) for r in rows]
     colors = ["C3" if n in d.selected else ("C0" if r.get("delta_bic") is not None else "0.7") for n, r in zip(names, rows)]
     if rows is not d.ranking:
-        ax.set_title(f"step {k + 1} of the selection", fontsize=9)
+        ax.set_title(f"step {k + 1} of the selection: the ranking that decided it", fontsize=9)
     ax.barh(names[::-1], np.sign(values[::-1]) * np.log10(1 + np.abs(values[::-1])), color=colors[::-1])
     ax.axvline(np.log10(1 + d.options["threshold"]), color="k", ls="--", lw=0.8)
-    ax.set_xlabel("sign(dBIC) log10(1 + |dBIC|)  (red: claimed, blue: refitted, grey: simulated or screened only)")
+    ax.set_xlabel("sign(dBIC) log10(1 + |dBIC|)\nred: claimed, blue: refitted, grey: simulated or screened only", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
