@@ -76,8 +76,9 @@ def final_and_truth_configurations(model=None) -> tuple[dict, str | None]:
 
         model = load_model("sagittal")
     final, warning = thesis_final_options(model)
+    reference = reference_experiment()  # its trial and conditions read once
     return {"thesis final model": (model, final, thesis_gains()),
-            "reference-data truth": (reference_model(), reference_truth_options(), truth_gains())}, warning
+            "reference-data truth": (reference.model(), dict(reference.options), truth_gains())}, warning
 
 
 def reference_experiment():
