@@ -2,7 +2,7 @@
 the thesis preset; prints JSON.
 
 The report: closed-loop equilibrium near upright, static energy Hessian, characteristic roots
-with the one-sided branches of a real rightmost root, and the three critical values by
+with the one-sided branches (flexion, extension), and the three critical values by
 bisection (co-activation, reflex gain scale, bushing stiffness). Model loading is timed
 separately (the second preset's model reuses what the first load cached, so its load time is not a
 load from scratch). Load-independent measures: diagram derivative evaluations and characteristic-root

