@@ -72,7 +72,7 @@ def main():
         "identifiable_within_2sd": sum(abs(z[n]) <= 2 for n in identifiable),
         "relative_error_identifiable": {n: result.gains[k][g] / truth[k][g] - 1 for n, (k, g) in identifiable.items()},
         "starts": [start_summary(s, result, truth) for s in result.starts],
-        "target_wall_time_s": 600,
+        "target_wall_time_s": 90,
     }
     print(json.dumps(out, indent=2, default=lambda o: None if isinstance(o, float) and not np.isfinite(o) else str(o)))
 
