@@ -199,7 +199,7 @@ def _obj_vertices(path) -> np.ndarray:
 
 # ------------------------------------------------------------------------------ commands and live view
 
-@pytest.mark.parametrize("dofs", ["sagittal", "spine3d"])
+@pytest.mark.parametrize("dofs", ["sagittal", "spine3d", "rhythm"])
 def test_view_command_writes_the_model_at_rest(dofs, tmp_path, capsys):
     from trunk_drake.cli import main
 

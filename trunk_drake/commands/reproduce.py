@@ -25,7 +25,7 @@ def add_command(sub) -> None:
     p.add_argument("--only", nargs="+", metavar="NAME", choices=[e.name for e in EXPERIMENTS],
                    help="run only these experiments (and what they require)")
     p.add_argument("--quick", action="store_true",
-                   help="every experiment shortened to seconds (a check that each runs, not a result; about 3 min)")
+                   help="every experiment shortened to seconds (a check that each runs, not a result; about 20 s)")
     p.set_defaults(func=run, resumable=True)
 
 

@@ -1,4 +1,4 @@
-"""`trunk-drake view [--dofs sagittal|spine3d] [--out FILE] [--serve]`: the model at rest in 3-D."""
+"""`trunk-drake view [--dofs sagittal|spine3d|rhythm] [--out FILE] [--serve]`: the model at rest in 3-D."""
 
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ def add_command(sub) -> None:
                        description="Write MyoTorso's bones, the 210 muscle paths (coloured by group) and the seat "
                                    "as a standalone HTML page that opens offline; with --serve, run a live Meshcat "
                                    "with a slider per coordinate instead.")
-    p.add_argument("--dofs", choices=["sagittal", "spine3d"], default="sagittal", help="model configuration")
+    p.add_argument("--dofs", choices=["sagittal", "spine3d", "rhythm"], default="sagittal",
+                   help="model configuration (rhythm: the default passenger's one lumbar coordinate)")
     p.add_argument("--out", dest="page", default="model.html",  # a file, not an output folder
                    help="HTML file to write (default model.html)")
     p.add_argument("--serve", action="store_true", help="live Meshcat (prints its address; Ctrl-C stops)")
