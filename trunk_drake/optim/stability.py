@@ -339,8 +339,9 @@ class ClosedLoop:
         mode, until mode and kinks agree: (root, mode). Each step takes the rightmost real trunk mode
         of the displaced linearisation (a Newton step from the previous root can land on a
         neighbouring root, or on a mode no coordinate takes part in, and so miss a growing one). Near a
-        critical value some kinks can flip with every step; then the larger of the last two roots."""
-        d, value, previous = np.real(vector), float(np.real(value)), float(np.real(value))
+        critical value some kinks flip with every step and the roots wander about the simulated rate, now and
+        then far off; then the median of the roots after the first step's."""
+        d, value, seen = np.real(vector), float(np.real(value)), []
         for _ in range(BRANCH_ITERATIONS):
             d = d / np.max(np.abs(d[: self.nq]))
             A0, A1 = self.split(self.jacobian(x + DISPLACEMENT * d, BRANCH_STEP))
@@ -352,10 +353,11 @@ class ClosedLoop:
             new = np.real(vectors[:, k])
             new = new if new @ d > 0 else -new
             converged = abs(roots[k].real - value) <= 1e-3 * abs(roots[k].real) + 1e-9
-            previous, value, d = value, float(roots[k].real), new
+            value, d = float(roots[k].real), new
+            seen.append(value)
             if converged:
                 return complex(value), d
-        return complex(max(value, previous)), d
+        return complex(float(np.median(seen[1:]))), d
 
     def _rightmost_real_trunk_mode(self, roots, vectors) -> int | None:
         """Index of the rightmost real root whose mode moves the trunk's coordinates, else None."""
