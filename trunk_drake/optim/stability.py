@@ -54,7 +54,8 @@ from trunk_drake.systems.muscles import muscle_parameters
 
 JACOBIAN_STEP = 1e-7
 DISPLACEMENT = 1e-4  # rad (0.006 deg, largest level): how far along a real mode its kinks are resolved
-TRUNK_MODE_FRACTION = 1e-6  # a mode whose coordinates move less than this fraction of its largest state is no trunk mode
+TRUNK_MODE_FRACTION = 1e-4  # a mode whose coordinates move less than this fraction of its largest state is no trunk mode
+#   (a trunk mode's share is 0.006-1 on the default passenger; 1e-5 was seen on a mode of the activations alone)
 BRANCH_STEP = 1e-9  # finite-difference step there, far below the displaced kink arguments
 BRANCH_ITERATIONS = 6
 EQUILIBRIUM_TOLERANCE = 1e-9  # Nm: Newton stops below this unbalanced generalized force
@@ -338,11 +339,14 @@ class ClosedLoop:
         """The real root `value` (with mode `vector`) re-linearised with its kinks resolved along the
         mode, until mode and kinks agree: (root, mode). Each step takes the rightmost real trunk mode
         of the displaced linearisation (a Newton step from the previous root can land on a
-        neighbouring root, or on a mode no coordinate takes part in, and so miss a growing one). Near a
+        neighbouring root, or on a mode no coordinate takes part in, and so miss a growing one), turned to
+        the side `vector` starts on (the sum of its flexion-extension coordinates keeps its sign). Two steps
+        at least: the first starts from `vector`, whose kinks may still be at their mean slopes. Near a
         critical value some kinks flip with every step and the roots wander about the simulated rate, now and
         then far off; then the median of the roots after the first step's."""
         d, value, seen = np.real(vector), float(np.real(value)), []
-        for _ in range(BRANCH_ITERATIONS):
+        side = np.sign(d[self.fe].sum()) or 1.0
+        for step in range(BRANCH_ITERATIONS):
             d = d / np.max(np.abs(d[: self.nq]))
             A0, A1 = self.split(self.jacobian(x + DISPLACEMENT * d, BRANCH_STEP))
             with single_threaded_blas():
@@ -351,8 +355,8 @@ class ClosedLoop:
             if k is None:
                 return complex(value), d  # only oscillating trunk modes on this side: keep the last real one
             new = np.real(vectors[:, k])
-            new = new if new @ d > 0 else -new
-            converged = abs(roots[k].real - value) <= 1e-3 * abs(roots[k].real) + 1e-9
+            new = new if side * new[self.fe].sum() > 0 else -new
+            converged = step > 0 and abs(roots[k].real - value) <= 1e-3 * abs(roots[k].real) + 1e-9
             value, d = float(roots[k].real), new
             seen.append(value)
             if converged:
@@ -360,10 +364,11 @@ class ClosedLoop:
         return complex(float(np.median(seen[1:]))), d
 
     def _rightmost_real_trunk_mode(self, roots, vectors) -> int | None:
-        """Index of the rightmost real root whose mode moves the trunk's coordinates, else None."""
+        """Index of the rightmost real root whose mode turns the trunk (its flexion-extension coordinates sum to
+        at least TRUNK_MODE_FRACTION of its largest state), else None."""
         for k, (root, v) in enumerate(zip(roots, vectors.T)):
             real = abs(root.imag) <= REAL_TOLERANCE * max(1.0, abs(root.real))
-            if real and np.max(np.abs(v[: self.nq])) > TRUNK_MODE_FRACTION * np.max(np.abs(v)):
+            if real and abs(np.real(v[self.fe]).sum()) > TRUNK_MODE_FRACTION * np.max(np.abs(v)):
                 return k
         return None
 
@@ -371,7 +376,7 @@ class ClosedLoop:
         """Roots of the central linearisation, its rightmost root, and each direction's one-sided branch,
         whatever the central root: a trunk displaced to one side can run away without oscillating where the
         central linearisation's rightmost pair oscillates. Each branch starts from the least-stable trunk
-        mode's shape over the coordinates, the other states at rest: (roots, {branch: root},
+        mode (an oscillating one: its shape over the coordinates, the other states at rest): (roots, {branch: root},
         {branch: mode over the coordinates})."""
         roots, vectors = self.rightmost(x)
         branches = {"central": complex(roots[0])}
@@ -379,8 +384,11 @@ class ClosedLoop:
         trunk = next((k for k, v in enumerate(vectors.T)
                       if np.max(np.abs(v[: self.nq])) > TRUNK_MODE_FRACTION * np.max(np.abs(v))), None)
         if trunk is not None and not (until_unstable and roots[0].real >= 0):
-            seed = np.zeros(len(x))
-            seed[: self.nq] = unit_shape(vectors[: self.nq, trunk])
+            if abs(roots[trunk].imag) <= REAL_TOLERANCE * max(1.0, abs(roots[trunk].real)):
+                seed = np.real(vectors[:, trunk]) / np.max(np.abs(np.real(vectors[: self.nq, trunk])))
+            else:  # an oscillating mode has no one real shape over the other states: the coordinates alone
+                seed = np.zeros(len(x))
+                seed[: self.nq] = unit_shape(vectors[: self.nq, trunk])
             flexion = np.sign(seed[self.fe].sum()) or 1.0
             for name, sign in (("flexion", flexion), ("extension", -flexion)):
                 value, shape = self.branch(x, roots[trunk], sign * seed)
@@ -394,7 +402,7 @@ class ClosedLoop:
         method = ("characteristic roots of the central-difference linearisation of the diagram"
                   + (f"; reflex delay {self.delay * 1e3:.1f} ms: Chebyshev spectral discretisation + Newton on the exact "
                      "characteristic equation" if self.delay > 0 else "")
-                  + ("; the real rightmost root re-linearised along the mode in each direction (kinks one-sided)"
+                  + ("; each direction re-linearised along its rightmost real trunk mode (kinks one-sided)"
                      if len(branches) > 1 else ""))
         branch = max(branches, key=lambda k: branches[k].real)
         result = DynamicStability(self.coordinates, roots, self.delay, branches, unit_shape(modes[branch]), branch,
