@@ -40,7 +40,7 @@ def deviation_rate(loop: ClosedLoop, x_eq, shape, rate: float) -> float:
     deviation = []
     for t in times:
         simulator.AdvanceTo(t)
-        deviation.append(abs(context.get_continuous_state_vector().CopyToVector()[: loop.nq].sum() - x_eq[: loop.nq].sum()))
+        deviation.append(abs(context.get_continuous_state_vector().CopyToVector()[loop.fe].sum() - x_eq[loop.fe].sum()))
     return float(np.polyfit(times, np.log(deviation), 1)[0])
 
 
