@@ -27,6 +27,29 @@ def test_levenberg_marquardt_on_a_known_problem():
     assert x[0] == pytest.approx(-0.8)
 
 
+def test_levenberg_marquardt_scale_frees_a_coordinate_in_wide_small_units():
+    # a log10 gain over [-1, 1] and a cubic coefficient over [0, 2000] 1/rad^2, each moving its residual alike over its
+    # range: without `scale` the damping, set by the gain's column, holds the coefficient at its start for the few
+    # steps of a time-domain refit (the gap search's stiffening law: 50.00007 from 50)
+    lo, hi, x0 = np.array([-1.0, 0.0]), np.array([1.0, 2000.0]), np.array([0.0, 50.0])
+    truth = np.array([0.3, 400.0])
+
+    def fun(x):
+        return np.array([100.0 * (x[0] - truth[0]) / 2.0, 100.0 * (x[1] - truth[1]) / 2000.0])
+
+    def jac(x):
+        return np.diag([50.0, 0.05])
+
+    held, *_ = levenberg_marquardt(fun, jac, x0, lo, hi, max_iterations=3)
+    freed, _, r, *_ = levenberg_marquardt(fun, jac, x0, lo, hi, max_iterations=3, scale=hi - lo)
+    assert held[1] < 60.0  # under 3 % of the way to 400
+    np.testing.assert_allclose(freed, truth, rtol=1e-2)
+    # the start is passed to `fun` exactly, and the bounds hold
+    seen = []
+    levenberg_marquardt(lambda x: seen.append(x.copy()) or fun(x), jac, x0, lo, np.array([1.0, 100.0]), scale=hi - lo)
+    assert np.array_equal(seen[0], x0) and all(x[1] <= 100.0 for x in seen)
+
+
 def test_untouched_parameters_get_infinite_variance():
     cov = inverse_or_inf(np.array([[4.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.0]]))
     assert cov[0, 0] == pytest.approx(0.25) and cov[1, 1] == pytest.approx(1.0) and np.isinf(cov[2, 2])

@@ -241,7 +241,7 @@ class TimeDomainFitter:
         z = x_full[free]
         if z.size:
             z, *_ = levenberg_marquardt(fun, jac, z, lo[free], hi[free], max_iterations=max_iterations, tolerance=1e-3,
-                                        refresh_every=max_iterations + 1)
+                                        refresh_every=max_iterations + 1, scale=hi[free] - lo[free])
         x = expand(z)
         outputs = self.outputs_of([x], effects, on, space)[0]
         return Fit(tuple(e.name for e in effects), x, self.chi2(outputs, "train"), self.chi2(outputs, "test"),

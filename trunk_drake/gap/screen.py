@@ -93,7 +93,8 @@ class LinearScreen:
             return finite_difference_jacobian(lambda points: [fun(p) for p in points], z, 1e-4 * (hi[free] - lo[free]))
 
         if free.size:
-            z, *_ = levenberg_marquardt(fun, jac, x[free], lo[free], hi[free], max_iterations=30, tolerance=1e-6)
+            z, *_ = levenberg_marquardt(fun, jac, x[free], lo[free], hi[free], max_iterations=30, tolerance=1e-6,
+                                        scale=hi[free] - lo[free])
             x = expand(z)
         train, test = fun(x[free]), fun(x[free], "test")
         return Fit(tuple(e.name for e in effects), x, float(train @ train), float(test @ test),

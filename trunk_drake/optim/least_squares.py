@@ -50,7 +50,7 @@ def finite_difference_jacobian(residuals, x, steps, *, central: bool = False, up
 
 
 def levenberg_marquardt(fun, jac, x0, lo, hi, max_iterations: int = 15, tolerance: float = 1e-3,
-                        refresh_every: int = 4, progress: bool = False, label: str = ""):
+                        refresh_every: int = 4, progress: bool = False, label: str = "", scale=None):
     """Bounded secant Levenberg-Marquardt: returns (x, J, r, iterations, status).
 
     Each step solves the bounded, damped Gauss-Newton subproblem as a quadratic program in
@@ -59,7 +59,19 @@ def levenberg_marquardt(fun, jac, x0, lo, hi, max_iterations: int = 15, toleranc
     row, otherwise kept current by Broyden's rank-one secant update (Madsen, Nielsen & Tingleff
     2004, "Methods for non-linear least squares problems", section 3.4). Stops when an
     accepted step lowers the cost 0.5 |r|^2 by less than `tolerance` (relative).
+
+    `scale` (one per coordinate, e.g. each one's bound range) sets the units the damping mu |d|^2 measures steps
+    in. Without it a coordinate of wide range in small units (a cubic stiffening coefficient over 0-2000 1/rad^2
+    beside log10 gains) has a Jacobian column thousands of times smaller than the others', and the damping, set
+    from the largest, holds it at its start for the few steps a time-domain refit takes.
     """
+    if scale is not None:  # solved for u = (x - x0) / scale: exactly x0 at the start (refits cache simulations by x)
+        x0, s = np.asarray(x0, float), np.asarray(scale, float)
+        u, J, r, it, status = levenberg_marquardt(lambda u: fun(x0 + u * s), lambda u: jac(x0 + u * s) * s,
+                                                  np.zeros_like(x0), (np.asarray(lo, float) - x0) / s,
+                                                  (np.asarray(hi, float) - x0) / s, max_iterations, tolerance,
+                                                  refresh_every, progress, label)
+        return np.clip(x0 + u * s, lo, hi), J / s, r, it, status
     x = np.asarray(x0, float)
     r = fun(x)
     J = jac(x)
