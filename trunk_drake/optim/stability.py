@@ -154,13 +154,13 @@ class StabilityResult:
         if self.dynamic is not None:
             d = self.dynamic
             s = d.rightmost
-            kind = (f"oscillating at {abs(s.imag) / (2 * np.pi):.2f} Hz" if abs(s.imag) > REAL_TOLERANCE * max(1, abs(s.real))
+            kind = (f"oscillating at {abs(s.imag) / (2 * np.pi):.2f} Hz" if not _is_real(s)
                     else f"non-oscillating, {d.mode_branch}")
             rate = (f"grows x2 every {np.log(2) / s.real:.3g} s" if s.real > 0 else f"decays /2 every {np.log(2) / -s.real:.3g} s")
             lines.append(f"dynamic: {'stable' if d.stable else 'unstable'}, margin {d.margin:+.3g} 1/s ({kind}; {rate}; "
                          f"mode {_shape_text(self.coordinates, d.mode)})")
             c = d.branches["central"]
-            if d.mode_branch != "central" and abs(c.imag) > REAL_TOLERANCE * max(1, abs(c.real)):
+            if d.mode_branch != "central" and not _is_real(c):
                 lines.append(f"oscillation (central linearisation): root {c.real:+.3g} +- {abs(c.imag):.3g}i 1/s, natural "
                              f"frequency {abs(c) / (2 * np.pi):.2f} Hz, damping ratio {-c.real / abs(c):.2f}")
             if d.critical_delay is not None:
@@ -367,8 +367,7 @@ class ClosedLoop:
         """Index of the rightmost real root whose mode turns the trunk (its flexion-extension coordinates sum to
         at least TRUNK_MODE_FRACTION of its largest state), else None."""
         for k, (root, v) in enumerate(zip(roots, vectors.T)):
-            real = abs(root.imag) <= REAL_TOLERANCE * max(1.0, abs(root.real))
-            if real and abs(np.real(v[self.fe]).sum()) > TRUNK_MODE_FRACTION * np.max(np.abs(v)):
+            if _is_real(root) and abs(np.real(v[self.fe]).sum()) > TRUNK_MODE_FRACTION * np.max(np.abs(v)):
                 return k
         return None
 
@@ -384,7 +383,7 @@ class ClosedLoop:
         trunk = next((k for k, v in enumerate(vectors.T)
                       if np.max(np.abs(v[: self.nq])) > TRUNK_MODE_FRACTION * np.max(np.abs(v))), None)
         if trunk is not None and not (until_unstable and roots[0].real >= 0):
-            if abs(roots[trunk].imag) <= REAL_TOLERANCE * max(1.0, abs(roots[trunk].real)):
+            if _is_real(roots[trunk]):
                 seed = np.real(vectors[:, trunk]) / np.max(np.abs(np.real(vectors[: self.nq, trunk])))
             else:  # an oscillating mode has no one real shape over the other states: the coordinates alone
                 seed = np.zeros(len(x))
@@ -555,6 +554,11 @@ def _blas_controller() -> ThreadpoolController:
 def single_threaded_blas():
     """Context: one BLAS thread. Multi-threaded LAPACK is 10-20x slower on these sizes on a loaded machine."""
     return _blas_controller().limit(limits=1)
+
+
+def _is_real(root) -> bool:
+    """A characteristic root whose imaginary part is negligible (REAL_TOLERANCE, relative above 1 1/s)."""
+    return abs(root.imag) <= REAL_TOLERANCE * max(1.0, abs(root.real))
 
 
 def _complex_json(value) -> dict:
