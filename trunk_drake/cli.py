@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
+import threading
 import warnings
 from pathlib import Path
 
@@ -76,22 +78,41 @@ def interrupted_message(out: Path | None, before: dict, resumable: bool) -> str:
     return f"interrupted; partial results in {out}" + ("; rerun the same command to resume" if resumable else "")
 
 
+_SIGINTS: list[int] = []  # the Ctrl-Cs main() received (while its handler is installed)
+
+
+def _note_sigint(signum, frame):
+    """SIGINT handler: note the Ctrl-C, then raise KeyboardInterrupt as Python's own handler does."""
+    _SIGINTS.append(signum)
+    signal.default_int_handler(signum, frame)
+
+
+def _interrupted(error: BaseException | None) -> bool:
+    """True if `error` is (or was caused by) a Ctrl-C, or follows one: a Ctrl-C that lands while native
+    code converts arguments (pybind11 casting a list into a Drake vector) is swallowed there and comes
+    out as an unrelated error, e.g. TypeError "incompatible function arguments"."""
+    return bool(_SIGINTS) or caused_by_interrupt(error)
+
+
 def _quiet_interrupts(unraisable, report=sys.unraisablehook) -> None:
     """sys.unraisablehook: a Ctrl-C caught inside native code (numba, a Drake callback), bare or
     re-wrapped by it, is no traceback for the user; main() reports the interruption."""
-    if not caused_by_interrupt(unraisable.exc_value):
+    if not _interrupted(unraisable.exc_value):
         report(unraisable)
 
 
 def main(argv: list[str] | None = None) -> int:
     run = {"out": None, "before": {}, "resumable": False}
     hook, sys.unraisablehook = sys.unraisablehook, _quiet_interrupts
+    in_main_thread = threading.current_thread() is threading.main_thread()  # signal handlers live there only
+    handler = signal.signal(signal.SIGINT, _note_sigint) if in_main_thread else None
+    _SIGINTS.clear()
     with warnings.catch_warnings():
         warnings.showwarning = plain_warning
         try:
             return _run(argv, run)
         except BaseException as error:
-            if not caused_by_interrupt(error):
+            if not _interrupted(error):
                 raise
             print(interrupted_message(run["out"], run["before"], run["resumable"]), file=sys.stderr)
             if argv is None:  # the command line: skip the interpreter's teardown (1-2 s with Drake loaded);
@@ -101,6 +122,8 @@ def main(argv: list[str] | None = None) -> int:
             return INTERRUPTED
         finally:
             sys.unraisablehook = hook
+            if in_main_thread:
+                signal.signal(signal.SIGINT, signal.SIG_DFL if handler is None else handler)
 
 
 def _run(argv, run: dict) -> int:
