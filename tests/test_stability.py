@@ -315,3 +315,5 @@ def test_default_passengers_one_sided_rates_match_simulation(gain_scale, l_desir
     dynamic = loop.dynamic(x_eq, delay_search=False)
     assert dynamic.margin == pytest.approx(max(b.real for b in branches.values()))
     assert dynamic.stable == (max(fitted.values()) < 0)
+    if dynamic.mode_branch != "central":  # the reported mode is turned to its side (the verdict prints it)
+        assert np.sign(dynamic.mode[loop.fe].sum()) == (1 if dynamic.mode_branch == "flexion" else -1)

@@ -76,7 +76,8 @@ class DynamicStability:
     roots: np.ndarray  # rightmost first (1/s), central-difference linearisation
     delay: float
     branches: dict  # "central" / "flexion" / "extension" -> rightmost root (1/s) of that linearisation
-    mode: np.ndarray  # least-stable mode over the coordinates (shape, largest entry +1)
+    mode: np.ndarray  # least-stable mode over the coordinates (shape, largest entry +1; a one-sided branch's -1 where
+    #   that turns it to its side: flexion-extension coordinates summing positive for flexion, negative for extension)
     mode_branch: str
     critical_delay: float | None
     reflexes: dict  # per group: muscles with a position reflex, engaged at rest, mean l_n - l_d
@@ -404,7 +405,10 @@ class ClosedLoop:
                   + ("; each direction re-linearised along its rightmost real trunk mode (kinks one-sided)"
                      if len(branches) > 1 else ""))
         branch = max(branches, key=lambda k: branches[k].real)
-        result = DynamicStability(self.coordinates, roots, self.delay, branches, unit_shape(modes[branch]), branch,
+        mode = unit_shape(modes[branch])
+        if branch != "central" and (mode[self.fe].sum() > 0) != (branch == "flexion"):
+            mode = -mode  # a one-sided mode keeps its side (an extension mode's flexion-extension sum is negative)
+        result = DynamicStability(self.coordinates, roots, self.delay, branches, mode, branch,
                                   None, self.reflexes(x), method)
         if result.stable and delay_search:
             result.critical_delay = self.critical_delay(x)
