@@ -42,6 +42,7 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from threadpoolctl import ThreadpoolController
 
 from trunk_drake.diagram import TrunkOptions, build_trunk_diagram, release, rotation_coordinates
@@ -266,6 +267,21 @@ class ClosedLoop:
         """Net generalized force at rest state x (Nm): M vdot."""
         vdot = time_derivatives(self.td, self.context, x)[self.nq: self.nq + self.nv]
         return self.td.plant.CalcMassMatrix(self.plant_context) @ vdot
+
+    def rotation_from(self, x0, times, integrator: str = "radau3", accuracy: float = 1e-4) -> np.ndarray:
+        """Lumbar rotation (the flexion-extension coordinates summed) at `times` of the full nonlinear diagram (the
+        loop's, without a reflex delay) started at state x0: what a linearised rate is checked against."""
+        simulator = Simulator(self.td.diagram)
+        ResetIntegratorFromFlags(simulator, integrator, 0.005)
+        simulator.get_mutable_integrator().set_target_accuracy(accuracy)
+        context = simulator.get_mutable_context()
+        context.SetContinuousState(np.asarray(x0, float))
+        simulator.Initialize()
+        out = []
+        for t in times:
+            simulator.AdvanceTo(t)
+            out.append(context.get_continuous_state_vector().CopyToVector()[self.fe].sum())
+        return np.array(out)
 
     def equilibrium(self, posture, max_iter: int = 30):
         """(rest state at the equilibrium nearest `posture`, found?, unbalanced force at the posture)."""
