@@ -41,9 +41,12 @@ def test_levenberg_marquardt_scale_frees_a_coordinate_in_wide_small_units():
         return np.diag([50.0, 0.05])
 
     held, *_ = levenberg_marquardt(fun, jac, x0, lo, hi, max_iterations=3)
-    freed, _, r, *_ = levenberg_marquardt(fun, jac, x0, lo, hi, max_iterations=3, scale=hi - lo)
+    freed, J, r, *_ = levenberg_marquardt(fun, jac, x0, lo, hi, max_iterations=3, scale=hi - lo)
     assert held[1] < 60.0  # under 3 % of the way to 400
     np.testing.assert_allclose(freed, truth, rtol=1e-2)
+    np.testing.assert_allclose(J, np.diag([50.0, 0.05]), atol=1e-9)  # the Jacobian returned in x's units (secant-updated)
+    with pytest.raises(ValueError, match="finite and positive"):
+        levenberg_marquardt(fun, jac, x0, lo, hi, scale=np.array([2.0, 0.0]))
     # the start is passed to `fun` exactly, and the bounds hold
     seen = []
     levenberg_marquardt(lambda x: seen.append(x.copy()) or fun(x), jac, x0, lo, np.array([1.0, 100.0]), scale=hi - lo)

@@ -66,7 +66,10 @@ def levenberg_marquardt(fun, jac, x0, lo, hi, max_iterations: int = 15, toleranc
     from the largest, holds it at its start for the few steps a time-domain refit takes.
     """
     if scale is not None:  # solved for u = (x - x0) / scale: exactly x0 at the start (refits cache simulations by x)
-        x0, s = np.asarray(x0, float), np.asarray(scale, float)
+        x0, s = np.asarray(x0, float), np.broadcast_to(np.asarray(scale, float), np.shape(x0))
+        if not np.all(np.isfinite(s) & (s > 0)):
+            raise ValueError(f"levenberg_marquardt: every scale must be finite and positive (one per coordinate, e.g. its "
+                             f"bound range hi - lo); got {s}. A coordinate whose bounds coincide cannot be fitted: hold it instead")
         u, J, r, it, status = levenberg_marquardt(lambda u: fun(x0 + u * s), lambda u: jac(x0 + u * s) * s,
                                                   np.zeros_like(x0), (np.asarray(lo, float) - x0) / s,
                                                   (np.asarray(hi, float) - x0) / s, max_iterations, tolerance,

@@ -42,6 +42,7 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from threadpoolctl import ThreadpoolController
 
 from trunk_drake.diagram import TrunkOptions, build_trunk_diagram, release, rotation_coordinates
@@ -76,7 +77,8 @@ class DynamicStability:
     roots: np.ndarray  # rightmost first (1/s), central-difference linearisation
     delay: float
     branches: dict  # "central" / "flexion" / "extension" -> rightmost root (1/s) of that linearisation
-    mode: np.ndarray  # least-stable mode over the coordinates (shape, largest entry +1)
+    mode: np.ndarray  # least-stable mode over the coordinates (shape, largest entry +1; a one-sided branch's -1 where
+    #   that turns it to its side: flexion-extension coordinates summing positive for flexion, negative for extension)
     mode_branch: str
     critical_delay: float | None
     reflexes: dict  # per group: muscles with a position reflex, engaged at rest, mean l_n - l_d
@@ -266,6 +268,21 @@ class ClosedLoop:
         vdot = time_derivatives(self.td, self.context, x)[self.nq: self.nq + self.nv]
         return self.td.plant.CalcMassMatrix(self.plant_context) @ vdot
 
+    def rotation_from(self, x0, times, integrator: str = "radau3", accuracy: float = 1e-4) -> np.ndarray:
+        """Lumbar rotation (the flexion-extension coordinates summed) at `times` of the full nonlinear diagram (the
+        loop's, without a reflex delay) started at state x0: what a linearised rate is checked against."""
+        simulator = Simulator(self.td.diagram)
+        ResetIntegratorFromFlags(simulator, integrator, 0.005)
+        simulator.get_mutable_integrator().set_target_accuracy(accuracy)
+        context = simulator.get_mutable_context()
+        context.SetContinuousState(np.asarray(x0, float))
+        simulator.Initialize()
+        out = []
+        for t in times:
+            simulator.AdvanceTo(t)
+            out.append(context.get_continuous_state_vector().CopyToVector()[self.fe].sum())
+        return np.array(out)
+
     def equilibrium(self, posture, max_iter: int = 30):
         """(rest state at the equilibrium nearest `posture`, found?, unbalanced force at the posture)."""
         unbalanced = self.generalized_force(self.rest_state(posture))
@@ -404,7 +421,10 @@ class ClosedLoop:
                   + ("; each direction re-linearised along its rightmost real trunk mode (kinks one-sided)"
                      if len(branches) > 1 else ""))
         branch = max(branches, key=lambda k: branches[k].real)
-        result = DynamicStability(self.coordinates, roots, self.delay, branches, unit_shape(modes[branch]), branch,
+        mode = unit_shape(modes[branch])
+        if branch != "central" and (mode[self.fe].sum() > 0) != (branch == "flexion"):
+            mode = -mode  # a one-sided mode keeps its side (an extension mode's flexion-extension sum is negative)
+        result = DynamicStability(self.coordinates, roots, self.delay, branches, mode, branch,
                                   None, self.reflexes(x), method)
         if result.stable and delay_search:
             result.critical_delay = self.critical_delay(x)
