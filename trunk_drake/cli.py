@@ -104,9 +104,11 @@ def _quiet_interrupts(unraisable, report=sys.unraisablehook) -> None:
 def main(argv: list[str] | None = None) -> int:
     run = {"out": None, "before": {}, "resumable": False}
     hook, sys.unraisablehook = sys.unraisablehook, _quiet_interrupts
-    in_main_thread = threading.current_thread() is threading.main_thread()  # signal handlers live there only
-    handler = signal.signal(signal.SIGINT, _note_sigint) if in_main_thread else None
-    _SIGINTS.clear()
+    # signal handlers live in the main thread only; an ignored SIGINT (a `nohup ... &` job) stays ignored
+    handler = signal.getsignal(signal.SIGINT) if threading.current_thread() is threading.main_thread() else None
+    noting = handler not in (None, signal.SIG_IGN)
+    if noting:
+        signal.signal(signal.SIGINT, _note_sigint)
     with warnings.catch_warnings():
         warnings.showwarning = plain_warning
         try:
@@ -122,8 +124,9 @@ def main(argv: list[str] | None = None) -> int:
             return INTERRUPTED
         finally:
             sys.unraisablehook = hook
-            if in_main_thread:
-                signal.signal(signal.SIGINT, signal.SIG_DFL if handler is None else handler)
+            if noting:
+                signal.signal(signal.SIGINT, handler)
+            _SIGINTS.clear()
 
 
 def _run(argv, run: dict) -> int:
