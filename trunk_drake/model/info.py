@@ -24,7 +24,7 @@ def model_info(model) -> dict:
     """Plain-data description of `model` at its neutral posture (SI units)."""
     plant, spec = model.plant, model.spec
     context = plant.CreateDefaultContext()
-    pelvis = plant.EvalBodyPoseInWorld(context, plant.GetBodyByName("sacrum")).rotation().matrix()
+    pelvis = plant.EvalBodyPoseInWorld(context, plant.GetBodyByName(spec.pelvis)).rotation().matrix()
     anterior, superior = pelvis[:, 0], pelvis[:, 1]
 
     upper = _subtree(spec, UPPER_BODY_ROOT)

@@ -82,7 +82,6 @@ def opensim_coordinate(name: str) -> tuple[str, float] | None:
     return _MYOTORSO_LEVEL_JOINTS[level][_DOF_KINDS.index(kind)], (-1.0 if kind == "FE" else 1.0)
 
 
-PELVIS_BODY = "sacrum"
 PELVIS_AXIS = np.array([1.0, 0.0, 0.0])  # anterior, in the sacrum frame
 DOFS = ("sagittal", "spine3d", "rhythm", "all")  # "all": every joint of the spec, as defined there
 RHYTHM_COORDINATE = "lumbar_FE"

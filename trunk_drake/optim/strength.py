@@ -91,7 +91,7 @@ def load_case(model, direction: str, level=("T6", "T7"), shoulder: str = "model"
     bodies = {s.body for s in sites}
     if len(bodies) != 1:
         raise ValueError(f"load landmarks {list(level)} lie on several bodies {sorted(bodies)}")
-    pelvis = plant.EvalBodyPoseInWorld(context, plant.GetBodyByName("sacrum")).rotation().matrix()[:, 0]
+    pelvis = plant.EvalBodyPoseInWorld(context, plant.GetBodyByName(model.spec.pelvis)).rotation().matrix()[:, 0]
     up = -np.asarray(model.spec.gravity, float) / np.linalg.norm(model.spec.gravity)
     anterior = pelvis - (pelvis @ up) * up
     anterior /= np.linalg.norm(anterior)
