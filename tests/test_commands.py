@@ -171,6 +171,16 @@ def test_model_info_says_posterior_for_a_posterior_position(capsys):
     assert "1.1 cm posterior and" in out and "-1.1 cm" not in out
 
 
+def test_model_info_of_an_osim_model_without_lumbar_vertebrae(capsys):
+    fixture = ROOT / "tests" / "data" / "fixture_trunk.osim"  # bodies pelvis, lumbar, thorax, head, roller
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the reader's notes on this fixture are tested in test_osim_fixture.py
+        assert main(["model", "info", "--dofs", "all", "--model", str(fixture)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("model fixture_trunk") and "total mass" in lines[-2]
+    assert lines[-1] == "upper body: not summarised (the model has no bodies lumbar5 ... lumbar1)"
+
+
 def test_version(capsys):
     assert main(["--version"]) == 0
     assert capsys.readouterr().out.startswith("trunk-drake 0.1.0 (drake ")

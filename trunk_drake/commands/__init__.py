@@ -137,7 +137,8 @@ def _set_point(text: str):
 
 
 _CONFIGURATIONS = {"sagittal": "five independent lumbar flexion levels", "spine3d": "independent levels in 3-D, pelvis welded",
-                   "rhythm": "one lumbar flexion coordinate moving the levels with Lumbar_C_210's rhythm"}
+                   "rhythm": "one lumbar flexion coordinate moving the levels with Lumbar_C_210's rhythm",
+                   "all": "every joint of the model as its file defines it (an .osim model without named lumbar levels)"}
 
 
 def dofs_argument(parser, choices=("sagittal", "rhythm"), default: str | None = "sagittal") -> None:

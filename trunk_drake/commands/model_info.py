@@ -1,4 +1,4 @@
-"""`trunk-drake model info [--dofs sagittal|spine3d|rhythm] [--json]`."""
+"""`trunk-drake model info [--dofs sagittal|spine3d|rhythm|all] [--json]`."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from trunk_drake.commands import dofs_argument, group, print_json
 def add_command(sub) -> None:
     info = group(sub, "model", "inspect the trunk model").add_parser(
         "info", help="coordinates, muscles per group, masses, upper-body centre of mass")
-    dofs_argument(info, ("sagittal", "spine3d", "rhythm"))
+    dofs_argument(info, ("sagittal", "spine3d", "rhythm", "all"))
     info.add_argument("--json", action="store_true", help="print JSON instead of text")
     info.set_defaults(func=run)
 

@@ -7,7 +7,7 @@ import numpy as np
 from trunk_drake.data import load_toml
 from trunk_drake.model.plant import rhythm_spec
 
-UPPER_BODY_ROOT = "torso"  # MyoTorso lumps thorax, head and neck above L1 into this subtree
+LEVEL_BODIES = ("lumbar5", "lumbar4", "lumbar3", "lumbar2", "lumbar1")  # MyoTorso's and Lumbar_C_210's names, L5 first
 THESIS_COM_ANTERIOR_TO_L4 = 0.091  # m, seed thesis section 3.2.3 (Schmid et al.'s full-body model)
 
 
@@ -24,18 +24,6 @@ def model_info(model) -> dict:
     """Plain-data description of `model` at its neutral posture (SI units)."""
     plant, spec = model.plant, model.spec
     context = plant.CreateDefaultContext()
-    pelvis = plant.EvalBodyPoseInWorld(context, plant.GetBodyByName(spec.pelvis)).rotation().matrix()
-    anterior, superior = pelvis[:, 0], pelvis[:, 1]
-
-    upper = _subtree(spec, UPPER_BODY_ROOT)
-    masses = np.array([spec.body(b).mass for b in upper])
-    coms = np.array([plant.EvalBodyPoseInWorld(context, plant.GetBodyByName(b)).multiply(spec.body(b).com) for b in upper])
-    com = masses @ coms / masses.sum()
-    l4 = plant.EvalBodyPoseInWorld(context, plant.GetBodyByName("lumbar4"))
-    joint_centre = l4.translation()
-    body_centre = l4.multiply(spec.body("lumbar4").com)
-    rel_joint, rel_body = com - joint_centre, com - body_centre
-
     groups = model.groups
     rhythm = None
     if model.coupling is not None:
@@ -53,15 +41,32 @@ def model_info(model) -> dict:
         "muscles_per_group": {g: len(m) for g, m in groups.items()},
         "absent_thesis_groups": load_toml("muscle_groups.toml")["absent"],
         "total_mass_kg": float(plant.CalcTotalMass(context)),
-        "upper_body": {
-            "bodies": upper,
-            "mass_kg": float(masses.sum()),
-            "com_anterior_of_L4_L5_joint_m": float(rel_joint @ anterior),
-            "com_superior_of_L4_L5_joint_m": float(rel_joint @ superior),
-            "com_anterior_of_L4_body_centre_m": float(rel_body @ anterior),
-            "thesis_com_anterior_of_L4_m": THESIS_COM_ANTERIOR_TO_L4,
-            "agrees_with_thesis": bool(abs(rel_body @ anterior - THESIS_COM_ANTERIOR_TO_L4) < 0.01),
-        },
+        "upper_body": _upper_body(plant, context, spec),
+    }
+
+
+def _upper_body(plant, context, spec) -> dict | None:
+    """Mass and centre of mass of everything above the top lumbar vertebra, relative to L4, along the pelvis' axes
+    (x anterior, y superior); None for a model without the five lumbar vertebrae."""
+    levels = spec.level_bodies or LEVEL_BODIES
+    if len(levels) != 5 or not set(levels) <= {b.name for b in spec.bodies}:
+        return None
+    pelvis = plant.EvalBodyPoseInWorld(context, plant.GetBodyByName(spec.pelvis)).rotation().matrix()
+    anterior, superior = pelvis[:, 0], pelvis[:, 1]
+    upper = [b for child in spec.children(levels[-1]) for b in _subtree(spec, child)]
+    masses = np.array([spec.body(b).mass for b in upper])
+    coms = np.array([plant.EvalBodyPoseInWorld(context, plant.GetBodyByName(b)).multiply(spec.body(b).com) for b in upper])
+    com = masses @ coms / masses.sum()
+    l4 = plant.EvalBodyPoseInWorld(context, plant.GetBodyByName(levels[1]))
+    rel_joint, rel_body = com - l4.translation(), com - l4.multiply(spec.body(levels[1]).com)
+    return {
+        "bodies": upper,
+        "mass_kg": float(masses.sum()),
+        "com_anterior_of_L4_L5_joint_m": float(rel_joint @ anterior),
+        "com_superior_of_L4_L5_joint_m": float(rel_joint @ superior),
+        "com_anterior_of_L4_body_centre_m": float(rel_body @ anterior),
+        "thesis_com_anterior_of_L4_m": THESIS_COM_ANTERIOR_TO_L4,
+        "agrees_with_thesis": bool(abs(rel_body @ anterior - THESIS_COM_ANTERIOR_TO_L4) < 0.01),
     }
 
 
@@ -76,14 +81,19 @@ def format_model_info(info: dict) -> str:
         f"muscles: {info['n_muscles']}",
         *(f"  {g:20s} {n:3d}" for g, n in info["muscles_per_group"].items()),
         "absent thesis groups: " + "; ".join(f"{g} ({why})" for g, why in info["absent_thesis_groups"].items()),
-        f"total mass {info['total_mass_kg']:.2f} kg; upper body ({', '.join(ub['bodies'])}) {ub['mass_kg']:.2f} kg",
+        f"total mass {info['total_mass_kg']:.2f} kg",
+    ]
+    if ub is None:
+        return "\n".join([*lines, "upper body: not summarised (the model has no bodies lumbar5 ... lumbar1)"])
+    return "\n".join([
+        *lines,
+        f"upper body ({', '.join(ub['bodies'])}) {ub['mass_kg']:.2f} kg",
         f"upper-body centre of mass: {_cm(ub['com_anterior_of_L4_L5_joint_m'], 'anterior', 'posterior')} and "
         f"{_cm(ub['com_superior_of_L4_L5_joint_m'], 'superior', 'inferior')} to the L4/L5 joint centre; "
         f"{_cm(ub['com_anterior_of_L4_body_centre_m'], 'anterior', 'posterior')} to the L4 body centre",
         f"  thesis (Schmid et al. model): {_cm(ub['thesis_com_anterior_of_L4_m'], 'anterior', 'posterior')} to L4 -> "
         + ("agrees (within 1 cm)" if ub["agrees_with_thesis"] else f"does NOT agree: {info['model']} has no arms and a posterior lumped upper body"),
-    ]
-    return "\n".join(lines)
+    ])
 
 
 def _cm(metres: float, positive: str, negative: str) -> str:
