@@ -390,4 +390,4 @@ def _anterior_direction(model) -> np.ndarray:
     """World direction of the pelvis' anterior (x) axis at the default posture."""
     plant = model.plant
     context = plant.CreateDefaultContext()
-    return plant.EvalBodyPoseInWorld(context, plant.GetBodyByName("sacrum")).rotation().matrix()[:, 0]
+    return plant.EvalBodyPoseInWorld(context, plant.GetBodyByName(model.spec.pelvis)).rotation().matrix()[:, 0]

@@ -267,7 +267,7 @@ def linearize(model, options: TrunkOptions, op: OperatingPoint, seat: bool = Fal
         raise ValueError("linearise without short-range stiffness (srs=None): the linear model adds it per frequency")
     open_loop = dataclasses.replace(options, kp=0.0, kv=0.0, gto_gain=0.0, vestibular_gain=0.0, reflex_delay=0.0,
                                     vestibular_delay=0.0, feedforward=np.asarray(op.u, float),
-                                    pelvis="force" if seat else "prescribed", pelvis_mass=_sacrum_mass(model))
+                                    pelvis="force" if seat else "prescribed", pelvis_mass=_pelvis_mass(model))
     signal = ConstantAcceleration()
     td = build_trunk_diagram(model, open_loop, signal)
     try:
@@ -343,5 +343,5 @@ def time_derivatives(td, context, x) -> np.ndarray:
     return td.diagram.EvalTimeDerivatives(context).CopyToVector()
 
 
-def _sacrum_mass(model) -> float:
-    return model.spec.body("sacrum").mass
+def _pelvis_mass(model) -> float:
+    return model.spec.body(model.spec.pelvis).mass
