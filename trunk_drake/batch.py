@@ -32,7 +32,7 @@ import numpy as np
 from trunk_drake.metadata import json_default
 from trunk_drake.model.levels import LEVELS
 from trunk_drake.model.plant import DOFS
-from trunk_drake.parallel import WorkerLost, WorkerPool
+from trunk_drake.parallel import WorkerLost, WorkerPool, caused_by_interrupt
 
 CASE_DEFAULTS = {
     "direction": "extension", "strength_scale": 1.0, "min_activation": 0.01, "p": 2.0, "include_passive": True,
@@ -113,6 +113,8 @@ def run_case(model, case: dict) -> dict:
                    muscles_at_upper_bound=len(result.muscles_at_upper_bound), sweep_last_feasible_N=result.sweep_force,
                    sweep_solves=result.sweep_solves, sweep_parity=result.parity)
     except Exception as err:  # noqa: BLE001 - any failure is recorded and the batch goes on
+        if caused_by_interrupt(err):  # a Ctrl-C that native code turned into another error: no failure to record
+            raise KeyboardInterrupt from err
         row.update(status="error", error=f"{type(err).__name__}: {err}")
     row["time_s"] = time.perf_counter() - start
     return row

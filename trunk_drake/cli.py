@@ -12,12 +12,11 @@ import argparse
 import os
 import signal
 import sys
-import threading
 import warnings
 from pathlib import Path
 
 from trunk_drake.commands import command_modules, plain_warning
-from trunk_drake.parallel import caused_by_interrupt
+from trunk_drake.parallel import caused_by_interrupt, noting_interrupts
 
 INTERRUPTED = 130  # exit status of a command stopped by SIGINT (128 + 2)
 
@@ -78,44 +77,25 @@ def interrupted_message(out: Path | None, before: dict, resumable: bool) -> str:
     return f"interrupted; partial results in {out}" + ("; rerun the same command to resume" if resumable else "")
 
 
-_SIGINTS: list[int] = []  # the Ctrl-Cs main() received (while its handler is installed)
-
-
-def _note_sigint(signum, frame):
-    """SIGINT handler: note the Ctrl-C, then raise KeyboardInterrupt as Python's own handler does."""
-    _SIGINTS.append(signum)
-    signal.default_int_handler(signum, frame)
-
-
-def _interrupted(error: BaseException | None) -> bool:
-    """True if `error` is (or was caused by) a Ctrl-C, or follows one: a Ctrl-C that lands while native
-    code converts arguments (pybind11 casting a list into a Drake vector) is swallowed there and comes
-    out as an unrelated error, e.g. TypeError "incompatible function arguments"."""
-    return bool(_SIGINTS) or caused_by_interrupt(error)
-
-
 def _quiet_interrupts(unraisable, report=sys.unraisablehook) -> None:
     """sys.unraisablehook: a Ctrl-C caught inside native code (numba, a Drake callback), bare or
     re-wrapped by it, is no traceback for the user; main() reports the interruption."""
-    if not _interrupted(unraisable.exc_value):
+    if not caused_by_interrupt(unraisable.exc_value):
         report(unraisable)
 
 
 def main(argv: list[str] | None = None) -> int:
     run = {"out": None, "before": {}, "resumable": False}
     hook, sys.unraisablehook = sys.unraisablehook, _quiet_interrupts
-    # signal handlers live in the main thread only; an ignored SIGINT (a `nohup ... &` job) stays ignored
-    handler = signal.getsignal(signal.SIGINT) if threading.current_thread() is threading.main_thread() else None
-    noting = handler not in (None, signal.SIG_IGN)
-    if noting:
-        signal.signal(signal.SIGINT, _note_sigint)
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), noting_interrupts() as listening:
         warnings.showwarning = plain_warning
         try:
             return _run(argv, run)
         except BaseException as error:
-            if not _interrupted(error):
+            if not caused_by_interrupt(error):
                 raise
+            if listening:
+                signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C while the message is written
             print(interrupted_message(run["out"], run["before"], run["resumable"]), file=sys.stderr)
             if argv is None:  # the command line: skip the interpreter's teardown (1-2 s with Drake loaded);
                 sys.stdout.flush()  # the work is abandoned and its files are closed already
@@ -124,9 +104,6 @@ def main(argv: list[str] | None = None) -> int:
             return INTERRUPTED
         finally:
             sys.unraisablehook = hook
-            if noting:
-                signal.signal(signal.SIGINT, handler)
-            _SIGINTS.clear()
 
 
 def _run(argv, run: dict) -> int:
@@ -144,12 +121,11 @@ def _run(argv, run: dict) -> int:
             run["before"] = _files(run["out"])
         with model_source(args.model):
             return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError, KeyError) as err:
+    except (ValueError, FileNotFoundError, KeyError, SimulationError) as err:
+        if caused_by_interrupt(err):  # a Ctrl-C that native code turned into another error
+            raise
         print(f"trunk-drake: error: {err}", file=sys.stderr)
-        return 2
-    except SimulationError as err:
-        print(f"trunk-drake: error: {err}", file=sys.stderr)
-        return 1
+        return 1 if isinstance(err, SimulationError) else 2
 
 
 if __name__ == "__main__":

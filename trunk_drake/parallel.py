@@ -13,6 +13,7 @@ its last job, also stops and reaps every worker.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import multiprocessing
 import pickle
@@ -25,6 +26,7 @@ from dataclasses import dataclass
 from multiprocessing.connection import wait as connection_wait
 
 _MODELS: dict = {}  # per worker process: recipe key -> TrunkModel
+_SIGINTS: list[int] = []  # the Ctrl-Cs noted in this process (`noting_interrupts`)
 _LOCK = threading.Lock()  # threads of one worker (Dask processes=False) run jobs one at a time
 
 
@@ -72,7 +74,11 @@ def _run(fn, recipe: ModelRecipe, job):
 
 def caused_by_interrupt(error: BaseException | None) -> bool:
     """True for a Ctrl-C, also when native code (numba, a Drake callback) re-raised it as another
-    exception (SystemError "returned a result with an exception set") with the KeyboardInterrupt as cause."""
+    exception (SystemError "returned a result with an exception set") with the KeyboardInterrupt as cause, and for
+    any error after a Ctrl-C that `noting_interrupts` noted: one landing while pybind11 converts an argument for
+    Drake is lost there and comes out as an unrelated error (TypeError "incompatible function arguments")."""
+    if _SIGINTS:
+        return True
     seen = set()
     while error is not None and id(error) not in seen:
         if isinstance(error, KeyboardInterrupt):
@@ -80,6 +86,29 @@ def caused_by_interrupt(error: BaseException | None) -> bool:
         seen.add(id(error))
         error = error.__cause__ or error.__context__
     return False
+
+
+def _note_sigint(signum, frame):
+    _SIGINTS.append(signum)
+    signal.default_int_handler(signum, frame)  # KeyboardInterrupt, as Python's own handler
+
+
+@contextlib.contextmanager
+def noting_interrupts():
+    """Inside, every Ctrl-C is noted before it raises KeyboardInterrupt, for `caused_by_interrupt`; the notes are
+    forgotten on leaving. Yields whether it listens: only the main thread can, and an ignored SIGINT (a background
+    job's) stays ignored."""
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.getsignal(signal.SIGINT) if main else None
+    listening, start = previous not in (None, signal.SIG_IGN), len(_SIGINTS)
+    try:
+        if listening:
+            signal.signal(signal.SIGINT, _note_sigint)
+        yield listening
+    finally:
+        if listening:
+            signal.signal(signal.SIGINT, previous)
+            del _SIGINTS[start:]
 
 
 class WorkerPool:
@@ -163,6 +192,8 @@ class WorkerPool:
                 try:
                     result = fn(self.model, job)
                 except Exception as err:  # noqa: BLE001 - as from a worker
+                    if caused_by_interrupt(err):  # a Ctrl-C that native code turned into another error
+                        raise KeyboardInterrupt from err
                     yield i, None, err
                 else:
                     yield i, result, None

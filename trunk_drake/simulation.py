@@ -15,6 +15,7 @@ from pydrake.systems.framework import EventStatus
 
 from trunk_drake.diagram import MUSCLE_LOGS, SLIDING_PELVIS, TrunkDiagram, TrunkOptions, build_trunk_diagram, release
 from trunk_drake.metadata import run_metadata
+from trunk_drake.parallel import caused_by_interrupt
 
 STIFF_INTEGRATOR = "radau3"  # L-stable: independent vertebrae's damping modes reach ~4000 1/s; compliant tendons
 DEFAULT_ACCURACY = 1e-2  # radau3's target accuracy
@@ -361,6 +362,8 @@ def _run(simulator, duration, steps, progress) -> None:
             for t in steps[1:]:
                 simulator.AdvanceTo(t)
     except RuntimeError as err:
+        if caused_by_interrupt(err):  # a Ctrl-C that a Drake callback turned into a RuntimeError
+            raise KeyboardInterrupt from err
         raise SimulationError(str(err)) from None
 
 

@@ -47,7 +47,7 @@ def model_info(model) -> dict:
 
 def _upper_body(plant, context, spec) -> dict | None:
     """Mass and centre of mass of everything above the top lumbar vertebra, relative to L4, along the pelvis' axes
-    (x anterior, y superior); None for a model without the five lumbar vertebrae."""
+    (x anterior, y superior); None for a model without the five lumbar vertebrae or without mass above them."""
     levels = spec.level_bodies or LEVEL_BODIES
     if len(levels) != 5 or not set(levels) <= {b.name for b in spec.bodies}:
         return None
@@ -55,6 +55,8 @@ def _upper_body(plant, context, spec) -> dict | None:
     anterior, superior = pelvis[:, 0], pelvis[:, 1]
     upper = [b for child in spec.children(levels[-1]) for b in _subtree(spec, child)]
     masses = np.array([spec.body(b).mass for b in upper])
+    if masses.sum() <= 0.0:
+        return None
     coms = np.array([plant.EvalBodyPoseInWorld(context, plant.GetBodyByName(b)).multiply(spec.body(b).com) for b in upper])
     com = masses @ coms / masses.sum()
     l4 = plant.EvalBodyPoseInWorld(context, plant.GetBodyByName(levels[1]))
@@ -84,7 +86,7 @@ def format_model_info(info: dict) -> str:
         f"total mass {info['total_mass_kg']:.2f} kg",
     ]
     if ub is None:
-        return "\n".join([*lines, "upper body: not summarised (the model has no bodies lumbar5 ... lumbar1)"])
+        return "\n".join([*lines, "upper body: not summarised (the model has no bodies lumbar5 ... lumbar1, or no mass above lumbar1)"])
     return "\n".join([
         *lines,
         f"upper body ({', '.join(ub['bodies'])}) {ub['mass_kg']:.2f} kg",

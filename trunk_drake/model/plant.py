@@ -281,6 +281,10 @@ def add_to_plant(plant: MultibodyPlant, spec: ModelSpec, coords: list[Coordinate
     drake_bodies = {}
     for b in spec.bodies:
         if b.name == spec.pelvis and pelvis_mass is not None:
+            if b.mass <= 0.0:
+                raise ValueError(f"the pelvis body {b.name!r} of model {spec.name!r} has no mass, so its inertia cannot be "
+                                 f"scaled to the {pelvis_mass:g} kg of a force-driven or seated pelvis; give it a mass and "
+                                 "inertia in the model file")
             b = type(b)(b.name, b.parent, b.pos, b.quat, float(pelvis_mass), b.com, b.inertia * pelvis_mass / b.mass)
         drake_bodies[b.name] = plant.AddRigidBody(b.name, _spatial_inertia(b))
 
