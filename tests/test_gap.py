@@ -596,6 +596,40 @@ def test_after_the_polish_the_selection_goes_on_on_every_gain_direction():
     assert [c[0] for c in fitter.calls[:2]] == [("reflex_delay", "upper_body_mass")] * 2  # the joint refit, 2 rounds
 
 
+def test_on_every_gain_direction_checks_tied_at_their_absence_are_each_refitted():
+    """`_Search.refine` after the polish: the best checked row, and every row within the threshold of it, up to
+    `refine` (checks at an effect's absence tie at minus its penalty: golgi_feedback_gain0.15 on 9b5788c refitted
+    only the stiffening law, -9.4 against the Golgi feedback's -9.5); a clear lead is refitted alone."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.search import Settings, _Search
+    from trunk_drake.gap.space import Fit, SearchSpace
+    from trunk_drake.optim.gains import GainLayout
+
+    names = ("stiffening_discs", "golgi_feedback", "seat_compliance", "extra_damping")
+    search = _Search(SearchSpace(TrunkOptions(), GainLayout(("kp.sacrospinalis", "kv.sacrospinalis")), np.eye(2)),
+                     SimpleNamespace(trials=[SimpleNamespace(steady_outputs=np.zeros((1000, 1)))]), FakeFitter(),
+                     tuple(effect(n) for n in names), Settings(), np.zeros((2, 0)), None)
+    search.all_gains = True
+    current = Fit((), np.array([0.1, 0.2]), 1300.0, 1400.0, {}, outputs=[])
+    refitted = []
+    search.fit_added = lambda current, held, x0, on=None: refitted.append(held[-1].name) or Fit(
+        tuple(e.name for e in held), x0, 1200.0, 1300.0, {held[-1].name: {}}, outputs=[])
+
+    def refine_after(checked: dict) -> list[str]:
+        refitted.clear()
+        search.check = lambda current, rows: [dict(r, checked_delta_bic=checked[r["effect"]]) for r in rows]
+        rows = [{"effect": n, "linear_fit": Fit((), np.array([0.1, 0.2, 0.0]), 0.0, 0.0, {})} for n in checked]
+        search.refine(current, rows)
+        return refitted
+
+    tied = {"stiffening_discs": -9.4, "golgi_feedback": -9.5, "seat_compliance": -32.0, "extra_damping": -40.0}
+    assert refine_after(tied) == ["stiffening_discs", "golgi_feedback"]
+    assert refine_after({"golgi_feedback": 30.0, "stiffening_discs": 15.0, "seat_compliance": 12.0}) == ["golgi_feedback"]
+    assert refine_after({n: -9.4 for n in names}) == list(names[:Settings().refine])  # at most `refine`
+
+
 def test_a_partner_masked_by_the_chosen_effect_is_refitted_with_it_from_its_own_first_step_fit():
     """`_Search.partners`: each effect that passed the first step is added to the final model at its own values and refitted
     with it on every gain direction; the best is claimed on its dBIC against the final model's effects refitted from
