@@ -557,7 +557,8 @@ def test_the_polish_refits_every_gain_direction_and_drops_an_effect_the_gains_th
 
 def test_after_the_polish_the_selection_goes_on_on_every_gain_direction():
     """`select` with `_Search.all_gains` (the search after the polish): no gain direction is left to rival an
-    effect, so a further effect is claimed on its own dBIC; the joint refit and the backward test run in rounds
+    effect, so a further effect is claimed on its own dBIC, also against the model without it refitted from its
+    gains; the joint refit and the backward test run in rounds
     like the polish (every coordinate free), and the polished model's gains are not refitted again first."""
     from types import SimpleNamespace
 
@@ -593,7 +594,41 @@ def test_after_the_polish_the_selection_goes_on_on_every_gain_direction():
     assert steps[0]["ranking"] == [{"effect": "upper_body_mass"}]  # the step's ranking, recorded with it
     assert steps[0]["delta_bic"] == pytest.approx(350.0 - search.penalty) and steps[0]["beats_gain_rival_by"] is None
     assert all(free == list(range(len(free))) and n == POLISH_ITERATIONS for _, free, n in fitter.calls)
-    assert [c[0] for c in fitter.calls[:2]] == [("reflex_delay", "upper_body_mass")] * 2  # the joint refit, 2 rounds
+    # no gain rival is left: the model without the mass refitted in rounds from the mass's fit must not do as well
+    # (it does not: 1400 held-out, so the current model stands; its second round gains nothing), then the joint refit
+    assert [c[0] for c in fitter.calls[:4]] == [("reflex_delay",)] * 2 + [("reflex_delay", "upper_body_mass")] * 2
+    assert steps[0]["delta_bic_against_refit"] == pytest.approx(350.0 - search.penalty)
+
+
+def test_on_every_gain_direction_an_effect_credited_with_further_gain_rounds_is_not_claimed():
+    """After the polish an added effect's refit runs further gain rounds: the model without it, refitted in rounds from
+    the effect's fit, takes that credit back (here it reaches the effect's held-out chi2, so the effect is not claimed)."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.search import Settings, _Search, select
+    from trunk_drake.gap.space import Fit, SearchSpace
+    from trunk_drake.optim.gains import GainLayout
+
+    class Fitter(FakeFitter):  # the model without the mass, refitted from the mass's gains, fits as well as with it
+        def fit(self, effects, x0, free, max_iterations=2, space=None, on=None):
+            assert tuple(e.name for e in effects) == ("reflex_delay",)
+            return Fit(("reflex_delay",), np.asarray(x0, float), 1200.0, 1048.0, {}, outputs=[])
+
+    search = _Search(SearchSpace(TrunkOptions(), GainLayout(("kp.sacrospinalis", "kv.sacrospinalis")), np.eye(2)),
+                     SimpleNamespace(trials=[SimpleNamespace(steady_outputs=np.zeros((1000, 1)))]), Fitter(),
+                     (effect("reflex_delay"), effect("upper_body_mass")), Settings(), np.zeros((2, 0)), None)
+    search.all_gains = True
+    polished = Fit(("reflex_delay",), np.array([0.1, 0.2, 0.05]), 1300.0, 1400.0, {}, outputs=[])
+    added = Fit(("reflex_delay", "upper_body_mass"), np.array([0.3, 0.1, 0.05, 1.1]), 1190.0, 1050.0, {}, outputs=[])
+    search.screen_additions = lambda current, names: [{"effect": n} for n in names]
+    search.refine = lambda current, rows: {"upper_body_mass": added}
+    steps = []
+    final = select(search, polished, steps.append)
+    assert final is polished and [s["action"] for s in steps] == ["stop"]
+    tried = steps[0]["matched_by_gains"][0]
+    assert tried["delta_bic"] == pytest.approx(350.0 - search.penalty)  # against the polished model: it would pass
+    assert tried["delta_bic_against_refit"] == pytest.approx(-2.0 - search.penalty)
 
 
 def test_on_every_gain_direction_checks_tied_at_their_absence_are_each_refitted():
