@@ -120,7 +120,8 @@ def write_report(out_dir, report: dict) -> Path:
     done = [e for e in EXPERIMENTS if e.name in entries]
     lines = ["# trunk-drake reproduction of the thesis' results (chapter 4)", "",
              f"> **Synthetic data.** {SYNTHETIC_NOTE}", "",
-             f"Model: {meta['model']['source']} ({meta['model']['dofs']}, fingerprint `{meta['model']['fingerprint']}`); "
+             f"Model: {meta['model']['source']} ({meta['model']['dofs']}, fingerprint `{meta['model']['fingerprint']}`, where a "
+             "section names no other configuration: the fits, the validation and the synthetic truth run on the data's); "
              f"created {meta['created']} on {meta['machine']}, Python {meta['python']}; "
              + ", ".join(f"{k} {v}" for k, v in meta["versions"].items()) + ".", "",
              "MyoTorso is not the thesis' model (Schmid et al.'s full-body OpenSim model): it has 7 of the thesis' 9 muscle "
