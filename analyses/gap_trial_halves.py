@@ -15,7 +15,10 @@ sign (one-sided reflexes; the spine deflected at rest under gravity), and an amp
 direction of that swing twice as much as in the other: here the training halves see its weaker side. The signature
 alone differs by a factor 2; with the gains refitted on the training halves (which can take up part of the smaller
 side), a profile over c moved the training chi2 by 9 and the held-out by 75 (analyses/gap_lm_scaling_check.py --held).
-Training on alternate windows of both halves instead would show a fit both directions of every swing.
+A split that keeps each swing with its mirror (training on the first half of each half period, say) would show a fit
+both directions of the swings it trains on (alternate 2 s windows would not: 5 windows per half period put every
+window's mirror in the other set), at about 40 % more simulation per refit step; where the largest swing falls stays
+a matter of the design.
 """
 
 import argparse
