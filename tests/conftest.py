@@ -1,5 +1,9 @@
-"""Shared test fixtures: the oracle files of ../shared (present in CI, maybe absent elsewhere)."""
+"""Shared test fixtures: the oracle files of ../shared (present in CI, maybe absent elsewhere), and a Ctrl-C that
+native code loses."""
 
+import os
+import signal
+import time
 from pathlib import Path
 
 import pytest
@@ -15,3 +19,26 @@ def lumbar_c210_path():
     if not LUMBAR_C_210.exists():
         pytest.skip(f"oracle model not found at {LUMBAR_C_210} (the repository's ../shared folder)")
     return LUMBAR_C_210
+
+
+@pytest.fixture
+def lose_a_ctrl_c():
+    """A call that receives a real Ctrl-C and loses it, as pybind11 converting an argument for Drake does, then raises
+    TypeError(message); SIGINT raises KeyboardInterrupt meanwhile, as on a terminal (pytest run in the background
+    ignores it), and the caller's handler is put back after."""
+
+    def lose(message: str = "incompatible function arguments"):
+        lost = False
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5.0)  # the handler runs here
+        except KeyboardInterrupt:
+            lost = True
+        assert lost, "no SIGINT arrived"
+        raise TypeError(message)
+
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield lose
+    finally:
+        signal.signal(signal.SIGINT, before)

@@ -112,32 +112,18 @@ def test_simulate_stops_with_one_line(tmp_path):
     _check(run, run.interrupt(), "interrupted")
 
 
-def test_a_ctrl_c_swallowed_in_native_code_still_reads_as_interrupted(monkeypatch, tmp_path, capsys):
+def test_a_ctrl_c_swallowed_in_native_code_still_reads_as_interrupted(monkeypatch, tmp_path, capsys, lose_a_ctrl_c):
     """A Ctrl-C landing while pybind11 converts a list for Drake is lost there and comes out as a TypeError
     (seen in CI: `SetFromVector(): incompatible function arguments`, exit 1 with a traceback): here the command
     loses it the same way, and main() still reports the interruption."""
     from trunk_drake import cli, parallel
     from trunk_drake.commands import simulate
 
-    def loses_the_interrupt(args):
-        lost = False
-        try:
-            os.kill(os.getpid(), signal.SIGINT)
-            time.sleep(5.0)  # the handler runs here
-        except KeyboardInterrupt:
-            lost = True
-        assert lost, "no SIGINT arrived"
-        raise TypeError("SetFromVector(): incompatible function arguments")
-
-    monkeypatch.setattr(simulate, "run", loses_the_interrupt)
-    before = signal.signal(signal.SIGINT, signal.default_int_handler)  # as on a terminal (a background job ignores it)
-    try:
-        assert cli.main(["simulate", "--out", str(tmp_path / "sim")]) == cli.INTERRUPTED
-        assert capsys.readouterr().err.strip() == "interrupted"
-        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # main() put the handler back
-        assert not parallel._SIGINTS  # and forgot the Ctrl-C: a later error is not taken for one
-    finally:
-        signal.signal(signal.SIGINT, before)
+    monkeypatch.setattr(simulate, "run", lambda args: lose_a_ctrl_c("SetFromVector(): incompatible function arguments"))
+    assert cli.main(["simulate", "--out", str(tmp_path / "sim")]) == cli.INTERRUPTED
+    assert capsys.readouterr().err.strip() == "interrupted"
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # main() put the handler back
+    assert not parallel._SIGINTS  # and forgot the Ctrl-C: a later error is not taken for one
 
 
 def test_fit_shows_progress_from_the_start_and_stops(tmp_path):

@@ -147,33 +147,16 @@ def test_an_unraisable_interrupt_is_quiet_and_other_errors_are_reported():
     assert [str(u.exc_value) for u in reported] == ["returned a result with an exception set"]
 
 
-def _loses_a_ctrl_c(model, job):
-    """A job that receives Ctrl-C and loses it, as native code converting an argument does."""
-    import os
-    import signal
-
-    try:
-        os.kill(os.getpid(), signal.SIGINT)
-        time.sleep(5.0)  # the handler runs here
-    except KeyboardInterrupt:
-        pass
-    raise TypeError("incompatible function arguments")
-
-
-def test_a_serial_pool_stops_on_a_ctrl_c_that_a_job_lost(sagittal):
+def test_a_serial_pool_stops_on_a_ctrl_c_that_a_job_lost(sagittal, lose_a_ctrl_c):
     """With one worker a job's error is returned like a worker's; after a noted Ctrl-C it is the interruption."""
-    import signal
-
     from trunk_drake.parallel import noting_interrupts
 
-    before = signal.signal(signal.SIGINT, signal.default_int_handler)  # as on a terminal
-    try:
-        with noting_interrupts(), WorkerPool(sagittal, workers=1) as pool:
-            with pytest.raises(KeyboardInterrupt):
-                pool.map(_loses_a_ctrl_c, [None])
-        with WorkerPool(sagittal, workers=1) as pool:  # outside, a job's TypeError is its own
-            with pytest.raises(TypeError):
-                pool.map(_loses_a_ctrl_c, [None])
-    finally:
-        signal.signal(signal.SIGINT, before)
+    def job(model, _):
+        lose_a_ctrl_c()
 
+    with noting_interrupts(), WorkerPool(sagittal, workers=1) as pool:
+        with pytest.raises(KeyboardInterrupt):
+            pool.map(job, [None])
+    with WorkerPool(sagittal, workers=1) as pool:  # outside, a job's TypeError is its own
+        with pytest.raises(TypeError):
+            pool.map(job, [None])
