@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from trunk_drake.data import load_toml
+from trunk_drake.model.levels import LEVEL_BODIES
 from trunk_drake.model.plant import rhythm_spec
 
-LEVEL_BODIES = ("lumbar5", "lumbar4", "lumbar3", "lumbar2", "lumbar1")  # MyoTorso's and Lumbar_C_210's names, L5 first
 THESIS_COM_ANTERIOR_TO_L4 = 0.091  # m, seed thesis section 3.2.3 (Schmid et al.'s full-body model)
 
 
@@ -49,7 +49,7 @@ def _upper_body(plant, context, spec) -> dict | None:
     """Mass and centre of mass of everything above the top lumbar vertebra, relative to L4, along the pelvis' axes
     (x anterior, y superior); None for a model without the five lumbar vertebrae or without mass above them."""
     levels = spec.level_bodies or LEVEL_BODIES
-    if len(levels) != 5 or not set(levels) <= {b.name for b in spec.bodies}:
+    if len(levels) != len(LEVEL_BODIES) or not set(levels) <= {b.name for b in spec.bodies}:
         return None
     pelvis = plant.EvalBodyPoseInWorld(context, plant.GetBodyByName(spec.pelvis)).rotation().matrix()
     anterior, superior = pelvis[:, 0], pelvis[:, 1]

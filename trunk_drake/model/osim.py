@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from trunk_drake.model.functions import Function, constant
-from trunk_drake.model.levels import LEVELS
+from trunk_drake.model.levels import LEVEL_BODIES, LEVELS
 from trunk_drake.model.paths import quat_matrix
 from trunk_drake.model.spec import (
     BodySpec, CoordinateSpec, CouplerSpec, JointSpec, ModelSpec, MuscleSpec, PathElement, PathWrapSpec, SiteSpec,
@@ -616,7 +616,7 @@ def _load_osim_spec(key, path, mapping_items) -> ModelSpec:
     mapping = dict(mapping_items) if mapping_items is not None else mapping_for(spec.name)
     names = {b.name for b in spec.bodies}
     levels = mapping.get("levels", {})
-    level_bodies = tuple(levels.get(level, f"lumbar{5 - i}") for i, level in enumerate(LEVELS))
+    level_bodies = tuple(levels.get(level, body) for level, body in zip(LEVELS, LEVEL_BODIES))
     if not set(level_bodies) <= names:
         level_bodies = ()
     pelvis = spec.body(level_bodies[0]).parent if level_bodies else next(b.name for b in spec.bodies if b.parent is None)
