@@ -132,6 +132,10 @@ def _step(step: dict) -> str:
         before, after = step["train_chi2"]
         return (f"restart{on}: the effects refitted from the nominal gains fit the training halves better ({before:.0f} -> "
                 f"{after:.0f}): {_values(step['values'])}; model: {model}")
+    if step["action"] == "regain":
+        before, after = step["train_chi2"]
+        return (f"regain{on}: the gains refitted from a candidate's fit without it fit the training halves better "
+                f"({before:.0f} -> {after:.0f}); the selection goes on from them; model: {model}")
     if step["action"] == "partners":
         tried = ", ".join(f"{n} {v:.1f}" for n, v in step["tried"].items()) or "none refitted"
         return f"partners{on}: each first-step effect refitted with the model (dBIC {tried}): none passes; model: {model}"
@@ -155,6 +159,8 @@ def _against_gains(tried: dict) -> str:
     nested = tried.get("on_widened_gains")
     if nested:
         parts.append(f"dBIC {nested['delta_bic']:.1f} on top of the gains widened by {nested['directions']} direction(s)")
+    if tried.get("delta_bic_against_refit") is not None:
+        parts.append(f"dBIC {tried['delta_bic_against_refit']:.1f} against the model refitted from its fit without it")
     return ", ".join(parts)
 
 

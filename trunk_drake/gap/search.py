@@ -108,6 +108,7 @@ class _Search:
         self.n_test, self.penalty = n_test, float(np.log(n_test))
         self.models: dict[frozenset, Fit] = {}  # the jointly fitted models, by effect set
         self.all_gains = False  # searching on every gain direction (after the polish): every refit in rounds (`polish_fit`)
+        self.better: Fit | None = None  # the best model of the current effects a `claim` refitted without its candidate
 
     def dbic(self, without: Fit, with_: Fit, effect) -> float:
         """Held-out evidence for `effect` in `with_` against `without`."""
@@ -200,7 +201,7 @@ class _Search:
         gain directions, not on top of them), and where the gains are widened first a true effect can lose
         to a further direction that the nested test then adds under it (golgi_feedback_gain0.3: Golgi 0.23
         lost to one more direction by 669)."""
-        tried = []
+        tried, self.better = [], None
         for dbic, name in sorted(((self.dbic(current, f, self.candidates[n]), n) for n, f in fits.items()), reverse=True):
             if dbic <= self.settings.threshold:
                 break
@@ -212,7 +213,10 @@ class _Search:
                 self.say(f"{name} does no better than the gains along {k} more direction(s) (by {margin:.1f})")
                 continue
             if self.all_gains:  # no gain direction left to rival it: gain rounds without it must not do as well
-                against = self.dbic(self.refit_without(current, fits[name], name), fits[name], self.candidates[name])
+                alone = self.refit_without(current, fits[name], name)
+                if alone is not current and (self.better is None or alone.train_chi2 < self.better.train_chi2):
+                    self.better = alone
+                against = self.dbic(alone, fits[name], self.candidates[name])
                 tried[-1]["delta_bic_against_refit"] = against
                 if against <= self.settings.threshold:
                     self.say(f"{name} does no better than the model refitted from its gains without it (dBIC {against:.1f})")
@@ -636,6 +640,7 @@ def select(s: _Search, current: Fit, record, first: tuple | None = None, dropped
     that passes (`_Search.claim`), refits the model jointly and drops the weakest effect while it does not earn its
     own dBIC. Returns the model where no candidate passes or `max_effects` is reached."""
     dropped = set() if dropped is None else set(dropped)
+    regained = 0  # models adopted from `claim`'s refits without a candidate (at most POLISH_ROUNDS)
     while len(current.effects) < s.settings.max_effects:
         scored = {}  # the step's ranking, recorded with it (the first step's is the search's `ranking`)
         if first is not None:
@@ -650,6 +655,16 @@ def select(s: _Search, current: Fit, record, first: tuple | None = None, dropped
             fits = s.refine(current, rows)
             scored = {"ranking": [{k: r[k] for k in RANKING_KEYS if k in r} for r in ranked(rows)]}
         chosen, tried = s.claim(current, fits)
+        better = s.better
+        if chosen is None and better is not None and current.train_chi2 - better.train_chi2 > s.settings.threshold \
+                and regained < POLISH_ROUNDS:  # a refit without a candidate found better gains: select on from them
+            record({"action": "regain", "model": list(better.effects), "heldout_chi2": better.heldout_chi2,
+                    "train_chi2": [current.train_chi2, better.train_chi2], **s.on_all_gains(), **scored})
+            s.say(f"the gains refitted from a candidate's fit without it fit better ({current.train_chi2:.0f} -> "
+                  f"{better.train_chi2:.0f} on the training halves): selecting on from them")
+            current, regained = better, regained + 1
+            s.models[frozenset(current.effects)] = current
+            continue
         if chosen is None:
             best = max(fits, key=lambda n: s.dbic(current, fits[n], s.candidates[n]), default=None)
             record({"action": "stop", "model": list(current.effects), "best_candidate": best,
