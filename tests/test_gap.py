@@ -636,9 +636,10 @@ def test_on_every_gain_direction_an_effect_credited_with_further_gain_rounds_is_
 
 
 def test_on_every_gain_direction_checks_tied_at_their_absence_are_each_refitted():
-    """`_Search.refine` after the polish: the best checked row, and every row within the threshold of it, up to
-    `refine` (checks at an effect's absence tie at minus its penalty: golgi_feedback_gain0.15 on 9b5788c refitted
-    only the stiffening law, -9.4 against the Golgi feedback's -9.5); a clear lead is refitted alone."""
+    """`_Search.refine` after the polish: the best checked row, and every row within the threshold of it, however
+    many (checks at an effect's absence tie at minus its penalty: golgi_feedback_gain0.15 on 9b5788c refitted only
+    the stiffening law, -9.4 against the Golgi feedback's -9.5; their order is no ranking, so no cut at `refine`);
+    a clear lead is refitted alone."""
     from types import SimpleNamespace
 
     from trunk_drake.gap.catalogue import effect
@@ -666,7 +667,73 @@ def test_on_every_gain_direction_checks_tied_at_their_absence_are_each_refitted(
     tied = {"stiffening_discs": -9.4, "golgi_feedback": -9.5, "seat_compliance": -32.0, "extra_damping": -40.0}
     assert refine_after(tied) == ["stiffening_discs", "golgi_feedback"]
     assert refine_after({"golgi_feedback": 30.0, "stiffening_discs": 15.0, "seat_compliance": 12.0}) == ["golgi_feedback"]
-    assert refine_after({n: -9.4 for n in names}) == list(names[:Settings().refine])  # at most `refine`
+    assert len(names) > Settings().refine and refine_after({n: -9.4 for n in names}) == list(names)  # every tied row
+
+
+def test_on_every_gain_direction_a_candidate_is_judged_against_the_best_refit_without_a_candidate():
+    """After the polish, the first candidate's refit without it fits better than the polished model; a second candidate
+    that beats its own refit-without but not that better model is not claimed, and the selection goes on from the
+    better model (`regain`) instead of claiming it against the polished one."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.search import Settings, _Search, select
+    from trunk_drake.gap.space import Fit, SearchSpace
+    from trunk_drake.optim.gains import GainLayout
+
+    search = _Search(SearchSpace(TrunkOptions(), GainLayout(("kp.sacrospinalis", "kv.sacrospinalis")), np.eye(2)),
+                     SimpleNamespace(trials=[SimpleNamespace(steady_outputs=np.zeros((1000, 1)))]), FakeFitter(),
+                     (effect("reflex_delay"), effect("upper_body_mass"), effect("muscle_strength")), Settings(),
+                     np.zeros((2, 0)), None)
+    search.all_gains = True
+    polished = Fit(("reflex_delay",), np.array([0.1, 0.2, 0.05]), 1300.0, 1400.0, {}, outputs=[])
+    mass = Fit(("reflex_delay", "upper_body_mass"), np.array([0.3, 0.1, 0.05, 1.1]), 1150.0, 1040.0, {}, outputs=[])
+    strength = Fit(("reflex_delay", "muscle_strength"), np.array([0.3, 0.1, 0.05, 1.1]), 1190.0, 1090.0, {}, outputs=[])
+    without = {"upper_body_mass": Fit(("reflex_delay",), polished.x, 1100.0, 1045.0, {}, outputs=[]),  # the better
+               "muscle_strength": Fit(("reflex_delay",), polished.x, 1250.0, 1300.0, {}, outputs=[])}
+    search.refit_without = lambda current, fit, name: without[name]
+    chosen, tried = search.claim(polished, {"upper_body_mass": mass, "muscle_strength": strength})
+    assert chosen is None and search.better is without["upper_body_mass"]
+    # strength would beat its own refit-without (held-out chi2 1300) but not the mass's (1045, the better in training)
+    assert [t["effect"] for t in tried] == ["upper_body_mass", "muscle_strength"]
+    assert tried[1]["delta_bic_against_refit"] == pytest.approx(1045.0 - 1090.0 - search.penalty)
+    search.screen_additions = lambda current, names: [{"effect": n} for n in names]
+    search.refine = lambda current, rows: ({"upper_body_mass": mass, "muscle_strength": strength}
+                                           if current is polished else {})
+    steps = []
+    final = select(search, polished, steps.append)
+    assert [s["action"] for s in steps] == ["regain", "stop"] and final is without["upper_body_mass"]
+
+
+def test_a_gain_rival_starts_from_the_rival_with_one_direction_fewer():
+    """`_Search.rival` with k directions starts from the rival with k - 1 (the new direction at zero), so it fits the
+    training halves at least as well (from the current model the 2-direction rival of the delay + slow activation
+    pair ended far worse than the 1-direction one)."""
+    from types import SimpleNamespace
+
+    from trunk_drake.gap.catalogue import effect
+    from trunk_drake.gap.search import Settings, _Search
+    from trunk_drake.gap.space import Fit, SearchSpace
+    from trunk_drake.optim.gains import GainLayout
+
+    starts = []
+
+    class Fitter(FakeFitter):  # each fit moves its last free coordinate to 1
+        def fit(self, effects, x0, free, max_iterations=2, space=None, on=None):
+            starts.append(np.array(x0))
+            x = np.array(x0, float)
+            x[free[-1]] = 1.0
+            return Fit(tuple(e.name for e in effects), x, 100.0 - len(free), 100.0, {}, outputs=[])
+
+    search = _Search(SearchSpace(TrunkOptions(), GainLayout(("kp.sacrospinalis", "kv.sacrospinalis")), np.eye(2)[:, :1]),
+                     SimpleNamespace(trials=[SimpleNamespace(steady_outputs=np.zeros((1000, 1)))]), Fitter(),
+                     (effect("reflex_delay"),), Settings(), np.array([[0.0, 1.0], [1.0, 1.0]]), None)
+    current = Fit(("reflex_delay",), np.array([0.5, 0.05]), 120.0, 120.0, {}, outputs=[])
+    two = search.rival(current, 2)
+    assert len(starts) == 2  # the 1-direction rival first, then the 2-direction one from it
+    np.testing.assert_array_equal(starts[0], [0.5, 0.0, 0.05])
+    np.testing.assert_array_equal(starts[1], [0.5, 1.0, 0.0, 0.05])  # the first rival's new direction kept
+    assert two.x.size == 4 and search.rival(current, 1).x[1] == 1.0 and len(starts) == 2  # cached
 
 
 def test_a_partner_masked_by_the_chosen_effect_is_refitted_with_it_from_its_own_first_step_fit():

@@ -160,7 +160,7 @@ def _against_gains(tried: dict) -> str:
     if nested:
         parts.append(f"dBIC {nested['delta_bic']:.1f} on top of the gains widened by {nested['directions']} direction(s)")
     if tried.get("delta_bic_against_refit") is not None:
-        parts.append(f"dBIC {tried['delta_bic_against_refit']:.1f} against the model refitted from its fit without it")
+        parts.append(f"dBIC {tried['delta_bic_against_refit']:.1f} against the best model refitted from a candidate's fit without it")
     return ", ".join(parts)
 
 
