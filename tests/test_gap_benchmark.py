@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from trunk_drake.gap.benchmark import summarize, summary_markdown
+from trunk_drake.gap.benchmark import best_gains_only_chi2, summarize, summary_markdown
 from trunk_drake.gap.synthetic import add_noise, signature_chi2
 from trunk_drake.io.trials import LUMBAR_LEVELS, Trial
 
@@ -169,3 +169,16 @@ def test_the_code_fingerprint_ignores_docstrings_and_comments_only(tmp_path):
     assert source_fingerprint(tmp_path) == before
     module.write_text('def f(x):\n    return x + 2\n')
     assert source_fingerprint(tmp_path) != before
+
+
+def test_the_gains_only_rival_of_the_truth_is_the_best_gains_only_model_the_diagnosis_recorded():
+    """`best_gains_only_chi2`: the lowest held-out chi2 among the diagnosis' gains-only models, the polished one
+    included (golgi_feedback_gain0.15 on 9b5788c: 17,510 polished against 17,723 widened), not models with effects."""
+    from types import SimpleNamespace
+
+    steps = [{"action": "stop", "model": [], "heldout_chi2": 42991.0}, {"action": "gains", "model": [], "heldout_chi2": 17723.0},
+             {"action": "polish", "model": [], "heldout_chi2": 17510.0}, {"action": "add", "model": ["golgi_feedback"],
+                                                                         "heldout_chi2": 17400.0},
+             {"action": "partners", "model": ["golgi_feedback"]}]
+    diagnosis = SimpleNamespace(options={"scores": {"refit_heldout_chi2": 42991.0}}, steps=steps)
+    assert best_gains_only_chi2(diagnosis) == 17510.0

@@ -252,7 +252,9 @@ def _observability(model, case: Case, nominal: TrunkOptions, designs, clean, noi
 def _versus_gains(model, case: Case, truth: TrunkOptions, noisy, diagnosis, noise_rad: float) -> dict:
     """Can these trials tell the withheld effect from mis-set gains? The truth's held-out chi-square
     (simulated as the diagnosis simulates its refits) against that of the best gains-only model the
-    diagnosis found (refitted on the training halves, along as many gain directions as passed): unless
+    diagnosis found (the lowest of its gains-only models: the nominal gains refitted, widened, polished on every
+    direction or regained; the polished one alone took the recorded advantage of golgi_feedback_gain0.15 on 9b5788c
+    from 272 to 59): unless
     the truth beats it by the threshold plus k ln N, the data are as well explained by mis-set gains as
     by the effect, and no method can attribute the case to the effect. Such cases are left out of the
     single-effect rates and reported on their own."""
@@ -262,11 +264,18 @@ def _versus_gains(model, case: Case, truth: TrunkOptions, noisy, diagnosis, nois
         y, *_ = simulate_outputs(model, truth, t, OUTPUT_NAMES)
         chi2 += segment_chi2(t.steady_outputs, y, noise_rad, half(t, "test"))
     scores = diagnosis.options["scores"]
-    gains = min([scores["refit_heldout_chi2"]] + [s["heldout_chi2"] for s in diagnosis.steps if s["action"] == "gains" and not s["model"]])
+    gains = best_gains_only_chi2(diagnosis)
     k = sum(len(values) for _, values in case.effects)
     dbic = float(gains - chi2 - k * scores["penalty"])
     return {"truth_heldout_chi2": float(chi2), "gains_only_heldout_chi2": float(gains), "truth_over_gains_delta_bic": dbic,
             "distinguishable_from_gains": dbic > THRESHOLD}
+
+
+def best_gains_only_chi2(diagnosis) -> float:
+    """The lowest held-out chi-square of the gains-only models a diagnosis recorded (its refit of the nominal
+    gains and every step whose model has no effect)."""
+    return min([diagnosis.options["scores"]["refit_heldout_chi2"]] + [
+        s["heldout_chi2"] for s in diagnosis.steps if s.get("model") == [] and s.get("heldout_chi2") is not None])
 
 
 def run_benchmark(out_dir, quick: bool = False, noise_deg: float = DEFAULT_NOISE_DEG, workers: int = 2, progress=print,
