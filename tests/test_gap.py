@@ -638,8 +638,8 @@ def test_on_every_gain_direction_an_effect_credited_with_further_gain_rounds_is_
 def test_on_every_gain_direction_checks_tied_at_their_absence_are_each_refitted():
     """`_Search.refine` after the polish: the best checked row, and every row within the threshold of it, however
     many (checks at an effect's absence tie at minus its penalty: golgi_feedback_gain0.15 on 9b5788c refitted only
-    the stiffening law, -9.4 against the Golgi feedback's -9.5; their order is no ranking, so no cut at `refine`);
-    a clear lead is refitted alone."""
+    the stiffening law, -9.4 against the Golgi feedback's -9.5; their order is no ranking, so no cut at `refine`),
+    and every row whose check passes the threshold; a clear lead is refitted alone."""
     from types import SimpleNamespace
 
     from trunk_drake.gap.catalogue import effect
@@ -666,7 +666,9 @@ def test_on_every_gain_direction_checks_tied_at_their_absence_are_each_refitted(
 
     tied = {"stiffening_discs": -9.4, "golgi_feedback": -9.5, "seat_compliance": -32.0, "extra_damping": -40.0}
     assert refine_after(tied) == ["stiffening_discs", "golgi_feedback"]
-    assert refine_after({"golgi_feedback": 30.0, "stiffening_discs": 15.0, "seat_compliance": 12.0}) == ["golgi_feedback"]
+    assert refine_after({"golgi_feedback": 30.0, "stiffening_discs": 8.0, "seat_compliance": -5.0}) == ["golgi_feedback"]
+    passing = {"seat_compliance": 2443.0, "golgi_feedback": 578.0, "extra_damping": 40.1, "stiffening_discs": 9.0}
+    assert refine_after(passing) == ["seat_compliance", "golgi_feedback", "extra_damping"]  # every check passing too
     assert len(names) > Settings().refine and refine_after({n: -9.4 for n in names}) == list(names)  # every tied row
 
 
