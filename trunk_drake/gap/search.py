@@ -340,10 +340,11 @@ class _Search:
         threshold of it and of every row whose check passes the threshold (each row was simulated at five points
         there, and a refit in rounds costs 120-300 simulations; on outside_compliant_tendons, run on d4e7d16, only
         the bushing's check of 2,443 was refitted, and failed, while slow activation, seat compliance and the reflex
-        delay had checked at 578, 573 and 40 and the verdict said no candidate improved by the threshold). There the checks of effects that the polished gains leave nothing to explain land at their
-        absence, at minus their penalty, and tie: on golgi_feedback_gain0.15 (run on 9b5788c) the stiffening law
-        checked at -9.4 and the Golgi feedback at -9.5, both at zero; only the stiffening was refitted (-4.6) and the
-        case claimed nothing, where a refit of the Golgi feedback from its check reached dBIC 44.9 (run on ca892f7).
+        delay had checked at 578, 573 and 40 and the verdict said no candidate improved by the threshold). There
+        the checks of effects that the polished gains leave nothing to explain land at their absence, at minus their
+        penalty, and tie: on golgi_feedback_gain0.15 (run on 9b5788c) the stiffening law checked at -9.4 and the
+        Golgi feedback at -9.5, both at zero; only the stiffening was refitted (-4.6) and the case claimed nothing,
+        where a refit of the Golgi feedback from its check reached dBIC 44.9 (run on ca892f7).
         Their order is no ranking, and rather the reverse: an effect that does nothing sits exactly at its absence,
         while one the polished gains have taken over checks below it (added to those gains it counts twice), so a cut
         at `refine` rows would drop the masked true effect first (the extra damping, fourth of five tied rows on
