@@ -160,3 +160,36 @@ def test_a_serial_pool_stops_on_a_ctrl_c_that_a_job_lost(sagittal, lose_a_ctrl_c
     with WorkerPool(sagittal, workers=1) as pool:  # outside, a job's TypeError is its own
         with pytest.raises(TypeError):
             pool.map(job, [None])
+
+
+def test_a_ctrl_c_another_thread_receives_while_the_workers_fork_waits_until_the_pool_knows_them(sagittal, monkeypatch):
+    """SIGINT is blocked in the main thread while the pool forks its workers, but another thread of the process can
+    receive it, and Python then raises KeyboardInterrupt in the main thread at its next bytecode, possibly between a
+    worker's fork and the pool's record of it (CI: a worker left running after `reproduce` was interrupted on a loaded
+    machine). The Ctrl-C is held until every job is submitted, then raised; no worker is left behind."""
+    import signal
+    import threading
+    from concurrent.futures import ProcessPoolExecutor
+
+    submitted, real_submit = [], ProcessPoolExecutor.submit
+
+    def submit(executor, *args, **kwargs):
+        if not submitted:  # a Ctrl-C reaches another thread while the first job's workers are being started
+            sender = threading.Thread(target=os.kill, args=(os.getpid(), signal.SIGINT))
+            sender.start()
+            sender.join()
+            time.sleep(0.05)  # bytecodes run here: Python's handler would raise now
+        future = real_submit(executor, *args, **kwargs)
+        submitted.append(True)
+        return future
+
+    monkeypatch.setattr(ProcessPoolExecutor, "submit", submit)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # CI runs pytest with SIGINT ignored
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with WorkerPool(sagittal, workers=2) as pool:
+                pool.map(_sleeps, [0.0, 0.0])
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert submitted == [True, True], "the Ctrl-C waited until both jobs were submitted"
+    assert not _active_children_after(5.0)

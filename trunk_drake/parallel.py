@@ -208,11 +208,13 @@ class WorkerPool:
                 self._executor = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("fork"),
                                                      initializer=_init_local, initargs=(self.recipe,))
         key = self.recipe.key
-        # SIGINT is blocked while the workers are forked: a Ctrl-C then waits for this process
-        # (not lost), and the workers, which inherit the mask, ignore it before unblocking it
+        # SIGINT is blocked while the workers are forked: the workers, which inherit the mask, ignore it before
+        # unblocking it; and a Ctrl-C that another thread of this process receives meanwhile is held back until
+        # the workers are known to the pool (`_held_sigint`), so none is left behind unstopped
         previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
         try:
-            futures = {self._executor.submit(_run_local, fn, key, job): i for i, job in enumerate(jobs)}
+            with _held_sigint():
+                futures = {self._executor.submit(_run_local, fn, key, job): i for i, job in enumerate(jobs)}
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, previous)
         pending = set(futures)
@@ -248,6 +250,26 @@ class WorkerPool:
         if self._client is not None:
             self._client.close()
             self._client = None
+
+
+@contextlib.contextmanager
+def _held_sigint():
+    """Inside (main thread only), a Ctrl-C is held back and raised on leaving. Blocking SIGINT in one thread does not
+    keep Python's handler out of it: a signal another thread receives still raises KeyboardInterrupt in the main
+    thread at its next bytecode, which could fall between a worker's fork and the pool's record of it (a worker
+    left running after `reproduce` was interrupted, on a loaded machine)."""
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) in (
+            signal.SIG_IGN, signal.SIG_DFL, None):
+        yield
+        return
+    held = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: held.append((signum, frame)))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if held:
+            previous(*held[0])
 
 
 def _stop(processes) -> None:
