@@ -22,10 +22,20 @@ def lumbar_c210_path():
 
 
 @pytest.fixture
-def lose_a_ctrl_c():
+def ctrl_c_raises():
+    """SIGINT raises KeyboardInterrupt while the test runs, as on a terminal (pytest run in the background ignores
+    it); the caller's handler is put back after."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
+@pytest.fixture
+def lose_a_ctrl_c(ctrl_c_raises):
     """A call that receives a real Ctrl-C and loses it, as pybind11 converting an argument for Drake does, then raises
-    TypeError(message); SIGINT raises KeyboardInterrupt meanwhile, as on a terminal (pytest run in the background
-    ignores it), and the caller's handler is put back after."""
+    TypeError(message)."""
 
     def lose(message: str = "incompatible function arguments"):
         lost = False
@@ -37,8 +47,4 @@ def lose_a_ctrl_c():
         assert lost, "no SIGINT arrived"
         raise TypeError(message)
 
-    before = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        yield lose
-    finally:
-        signal.signal(signal.SIGINT, before)
+    return lose

@@ -162,7 +162,8 @@ def test_a_serial_pool_stops_on_a_ctrl_c_that_a_job_lost(sagittal, lose_a_ctrl_c
             pool.map(job, [None])
 
 
-def test_a_ctrl_c_another_thread_receives_while_the_workers_fork_waits_until_the_pool_knows_them(sagittal, monkeypatch):
+def test_a_ctrl_c_another_thread_receives_while_the_workers_fork_waits_until_the_pool_knows_them(
+        sagittal, monkeypatch, ctrl_c_raises):
     """SIGINT is blocked in the main thread while the pool forks its workers, but another thread of the process can
     receive it, and Python then raises KeyboardInterrupt in the main thread at its next bytecode, possibly between a
     worker's fork and the pool's record of it (CI: a worker left running after `reproduce` was interrupted on a loaded
@@ -184,12 +185,8 @@ def test_a_ctrl_c_another_thread_receives_while_the_workers_fork_waits_until_the
         return future
 
     monkeypatch.setattr(ProcessPoolExecutor, "submit", submit)
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # CI runs pytest with SIGINT ignored
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            with WorkerPool(sagittal, workers=2) as pool:
-                pool.map(_sleeps, [0.0, 0.0])
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    with pytest.raises(KeyboardInterrupt):
+        with WorkerPool(sagittal, workers=2) as pool:
+            pool.map(_sleeps, [0.0, 0.0])
     assert submitted == [True, True], "the Ctrl-C waited until both jobs were submitted"
     assert not _active_children_after(5.0)

@@ -93,14 +93,22 @@ def _note_sigint(signum, frame):
     signal.default_int_handler(signum, frame)  # KeyboardInterrupt, as Python's own handler
 
 
+def _own_sigint_handler():
+    """The SIGINT handler this thread may replace: None outside the main thread (only it can set one) or where SIGINT
+    is ignored (a background job's stays ignored)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    handler = signal.getsignal(signal.SIGINT)
+    return None if handler in (None, signal.SIG_IGN) else handler
+
+
 @contextlib.contextmanager
 def noting_interrupts():
     """Inside, every Ctrl-C is noted before it raises KeyboardInterrupt, for `caused_by_interrupt`; the notes are
     forgotten on leaving. Yields whether it listens: only the main thread can, and an ignored SIGINT (a background
     job's) stays ignored."""
-    main = threading.current_thread() is threading.main_thread()
-    previous = signal.getsignal(signal.SIGINT) if main else None
-    listening, start = previous not in (None, signal.SIG_IGN), len(_SIGINTS)
+    previous = _own_sigint_handler()
+    listening, start = previous is not None, len(_SIGINTS)
     try:
         if listening:
             signal.signal(signal.SIGINT, _note_sigint)
@@ -258,8 +266,7 @@ def _held_sigint():
     keep Python's handler out of it: a signal another thread receives still raises KeyboardInterrupt in the main
     thread at its next bytecode, which could fall between a worker's fork and the pool's record of it (a worker
     left running after `reproduce` was interrupted, on a loaded machine)."""
-    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) in (
-            signal.SIG_IGN, signal.SIG_DFL, None):
+    if not callable(_own_sigint_handler()):  # none to defer (SIG_DFL ends the process at once, as it would)
         yield
         return
     held = []

@@ -23,7 +23,9 @@ def add_command(sub) -> None:
     p.add_argument("--candidates", nargs="*", choices=[e.name for e in CATALOGUE], metavar="EFFECT",
                    help=f"candidate effects (default: the whole catalogue: {', '.join(e.name for e in CATALOGUE)})")
     p.add_argument("--threshold", type=float, default=10.0, help="held-out dBIC needed to claim an effect")
-    p.add_argument("--refine", type=count, default=3, help="candidates refined with nonlinear simulations (after the polish: the best check and every one within the threshold of it or passing it)")
+    p.add_argument("--refine", type=count, default=3,
+                   help="candidates refined with nonlinear simulations (after the polish: the best check and every one "
+                        "within the threshold of it or passing it)")
     p.add_argument("--gains-first", action="store_true",
                    help="widen the reflex gains beyond the identifiable directions (as far as each further direction "
                         "passes the threshold) before weighing any effect")
