@@ -6,11 +6,12 @@ co-activation, neutral reflex set point) with truth reflex gains = the preset's 
 fixed per-group factors (0.5x-2x, `TRUTH_FACTORS`), so that the fit has a non-trivial truth to
 recover; adds white measurement noise to the angles; and writes one CSV per trial plus
 conditions.toml (what the fit knows), truth_feedforward.csv and truth.toml (what it must find).
-Run: python analyses/make_reference_data.py
+Run: python analyses/make_reference_data.py [--out models/reference] [--duration S]   (default: the trials' full length)
 """
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import warnings
 from pathlib import Path
@@ -60,6 +61,11 @@ def _toml(value) -> str:
 
 
 def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=OUT, help="folder to write (default: models/reference)")
+    parser.add_argument("--duration", type=float, help="simulated seconds per trial (default: the multisine's full length)")
+    args = parser.parse_args()
+    out = args.out
     preset = load_preset(PRESET)
     model = preset.model()
     with warnings.catch_warnings():
@@ -68,12 +74,12 @@ def main():
     truth = truth_gains(preset)
     options = dataclasses.replace(options, **truth)
     rng = np.random.default_rng(2026)
-    OUT.mkdir(parents=True, exist_ok=True)
+    out.mkdir(parents=True, exist_ok=True)
     # the truth feed-forward excitation itself, so the data stay reproducible if the optimiser changes
-    (OUT / "truth_feedforward.csv").write_text("muscle,excitation\n" + "".join(
+    (out / "truth_feedforward.csv").write_text("muscle,excitation\n" + "".join(
         f"{m},{u!r}\n" for m, u in zip(model.muscles, options.feedforward.tolist())))
     for name, bandwidth, seed in TRIALS:
-        result = simulate(model, bandwidth=bandwidth, seed=seed, options=options, log_rate=FS, integrator=INTEGRATOR,
+        result = simulate(model, duration=args.duration, bandwidth=bandwidth, seed=seed, options=options, log_rate=FS, integrator=INTEGRATOR,
                           accuracy=ACCURACY)
         noise = lambda: rng.normal(0.0, np.radians(NOISE_DEG), len(result.time))  # noqa: E731
         levels = {f"{lvl}_rad": result.coordinate(lvl) + noise() for lvl in LUMBAR_LEVELS}
@@ -82,7 +88,7 @@ def main():
                 "bandwidth_hz": bandwidth, "multisine_seed": seed, "period_s": 20.0, "fade_s": 2.0,
                 "noise_deg": NOISE_DEG, "preset": preset.name, "integrator": f"{INTEGRATOR}, accuracy {ACCURACY:g}",
                 "truth": "models/reference/truth.toml"}
-        write_csv(OUT / f"{name}.csv", time=result.time, columns=columns, in_degrees=False, metadata=meta)
+        write_csv(out / f"{name}.csv", time=result.time, columns=columns, in_degrees=False, metadata=meta)
         rotation = np.degrees(result.lumbar_rotation)
         print(f"{name}: {result.sim_time_s:.0f} s simulated, lumbar rotation rms {np.std(rotation):.2f} deg, "
               f"peak {np.max(np.abs(rotation - rotation[0])):.2f} deg from the start")
@@ -93,7 +99,7 @@ def main():
     lines += [f"{k} = {_toml(v)}" for k, v in conditions(preset).items()]
     lines += ['feedforward_file = "truth_feedforward.csv"', f"noise_deg = {NOISE_DEG}", f"sampling_hz = {FS}",
               "period_s = 20.0", "fade_s = 2.0"]
-    (OUT / "conditions.toml").write_text("\n".join(lines) + "\n")
+    (out / "conditions.toml").write_text("\n".join(lines) + "\n")
     lines = ["# Truth reflex gains of the SYNTHETIC reference trials (analyses/make_reference_data.py).",
              f"# Each gain = the {preset.name!r} preset's gain (thesis Table 4.3 x {preset.gain_scale:g}) times a fixed",
              "# factor of [factors] (0.5x-2x, chosen so that the fit has a non-trivial truth to recover).",
@@ -103,7 +109,7 @@ def main():
         lines += ["", f"[{key}]"] + [f"{g} = {v}" for g, v in truth[key].items()]
     for key in ("kp", "kv"):
         lines += ["", f"[factors.{key}]"] + [f"{g} = {v}" for g, v in TRUTH_FACTORS[key].items()]
-    (OUT / "truth.toml").write_text("\n".join(lines) + "\n")
+    (out / "truth.toml").write_text("\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":

@@ -7,7 +7,9 @@ a decay (2 / rate of a growth, to about 0.7 deg), at most 12 s. A flexion decays
 linearisation's oscillating pair, which the displaced start also excites, so its simulated rate is that pair's. Writes
 docs/stability/simulation_check.json and .md.
 
-    python analyses/stability_vs_simulation.py [--out docs/stability]
+    python analyses/stability_vs_simulation.py [--out docs/stability] [--quick]
+
+`--quick`: the default's gains only, at most 1 s per simulation (a check that it runs, not a result).
 """
 
 import argparse
@@ -26,9 +28,9 @@ DISPLACEMENT_DEG = 0.1
 LONGEST = 12.0  # s
 
 
-def deviation_rate(loop: ClosedLoop, x_eq, shape, rate: float) -> float:
+def deviation_rate(loop: ClosedLoop, x_eq, shape, rate: float, longest: float = LONGEST) -> float:
     """Fitted growth rate (1/s) of the lumbar rotation's deviation from x_eq after starting at x_eq + 0.1 deg x shape."""
-    duration = min(LONGEST, (2.0 if rate > 0 else 4.0) / max(abs(rate), 1e-3))  # a growth: to about 0.7 deg
+    duration = min(longest, (2.0 if rate > 0 else 4.0) / max(abs(rate), 1e-3))  # a growth: to about 0.7 deg
     times = np.linspace(0.5 * duration, duration, 61)
     start = x_eq + np.radians(DISPLACEMENT_DEG) * shape / np.max(np.abs(shape[: loop.nq]))
     deviation = np.abs(loop.rotation_from(start, times, "runge_kutta3", 1e-6) - x_eq[loop.fe].sum())
@@ -38,11 +40,14 @@ def deviation_rate(loop: ClosedLoop, x_eq, shape, rate: float) -> float:
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="docs/stability")
-    out = Path(parser.parse_args().out)
+    parser.add_argument("--quick", action="store_true", help="the default's gains only, at most 1 s per simulation")
+    args = parser.parse_args()
+    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     preset = load_preset("default")
+    longest = 1.0 if args.quick else LONGEST
     rows = []
-    for scale in SCALES:
+    for scale in SCALES[-1:] if args.quick else SCALES:
         p = preset.with_changes(gain_scale=preset.gain_scale * scale)
         model = p.model()
         with warnings.catch_warnings():
@@ -54,7 +59,7 @@ def main():
                "central": [branches["central"].real, abs(branches["central"].imag)]}
         for side in ("flexion", "extension"):
             rate, shape = loop.branch(x_eq, branches[side].real, np.r_[modes[side], np.zeros(x_eq.size - loop.nq)])
-            row[side] = {"predicted_per_s": rate.real, "simulated_per_s": deviation_rate(loop, x_eq, shape, rate.real)}
+            row[side] = {"predicted_per_s": rate.real, "simulated_per_s": deviation_rate(loop, x_eq, shape, rate.real, longest)}
         rows.append(row)
         print(json.dumps(row), flush=True)
     (out / "simulation_check.json").write_text(json.dumps({"rows": rows, "metadata": run_metadata(model)}, indent=2,

@@ -2,9 +2,10 @@
 
 The minimum over 3 runs of `time.process_time()` around `simulate`, after a warm-up; less
 sensitive to other jobs on the CPU than wall time. Run it alternately on two checkouts (one via
-PYTHONPATH) to compare them under the same load. Prints JSON. Usage: python benchmarks/cpu_time.py
+PYTHONPATH) to compare them under the same load. Prints JSON. Usage: python benchmarks/cpu_time.py [--duration 2]
 """
 
+import argparse
 import json
 import os
 import time
@@ -16,6 +17,9 @@ from trunk_drake.simulation import simulate
 
 
 def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--duration", type=float, default=2.0, help="simulated seconds per run (default 2)")
+    duration = parser.parse_args().duration
     model = td.load_model("sagittal")
     options = trial_options(model, "thesis")
     with warnings.catch_warnings():
@@ -24,7 +28,7 @@ def main():
         runs = []
         for _ in range(3):
             start = time.process_time()
-            result = simulate(model, duration=2.0, **options)
+            result = simulate(model, duration=duration, **options)
             runs.append(time.process_time() - start)
     print(json.dumps({"code": td.__file__, "cpu_s_min_of_3": min(runs), "cpu_s": runs, "steps": result.stats["steps"],
                       "derivative_evaluations": result.stats["derivative_evaluations"], "load_average": os.getloadavg()}))

@@ -8,6 +8,7 @@ simulations, cost vs the noise floor and vs the cost at the truth (the minimum l
 it: a fit above it has not converged), and the recovered gains against the truth (in units of
 their reported standard deviation), for the best fit and for every start. "Identifiable" gains
 are those the fit itself determines to better than 50 % (reported SD < half the fitted value).
+Usage: python benchmarks/fit.py [--starts N] [--max-iterations N] [--progress] [--t-max S]
 """
 
 import argparse
@@ -33,10 +34,12 @@ def main():
     parser.add_argument("--starts", type=int, default=1, help="number of starts (first: the preset's gains)")
     parser.add_argument("--max-iterations", type=int, default=MAX_ITERATIONS, help="per start (the fit's default)")
     parser.add_argument("--progress", action="store_true", help="the fit's progress on stderr")
+    parser.add_argument("--t-max", type=float, help="fit only the trials' first T_MAX seconds (a check that it runs)")
     args = parser.parse_args()
     reference = models_dir() / "reference"
     experiment = load_experiment([reference / "trial_1hz_a.csv", reference / "trial_1hz_b.csv"], reference / "conditions.toml")
-    targets = targets_from_trials(experiment.trials, OUTPUT_NAMES, experiment.noise_rad, period=experiment.period)
+    targets = targets_from_trials(experiment.trials, OUTPUT_NAMES, experiment.noise_rad, period=experiment.period,
+                                  t_max=args.t_max)
     truth = tomllib.loads((reference / "truth.toml").read_text())
     model = experiment.model()
     load_before = os.getloadavg()

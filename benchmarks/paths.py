@@ -4,8 +4,10 @@ Ours: `TrunkModel.path_state(q)` (MyoTorso: compiled body kinematics and vectori
 numba call each). MuJoCo (same model, same pose): mj_kinematics + mj_comPos + mj_tendon + mj_transmission.
 With `../shared/reference/lumbar_c_210/Lumbar_C_210.osim` present, also the original OpenSim
 model read by trunk-drake (OpenSim path semantics and wrapping, poses from the plant), same configurations.
+Usage: python benchmarks/paths.py [--quick]   (`--quick`: a check that it runs, not a result)
 """
 
+import argparse
 import json
 import os
 import platform
@@ -30,6 +32,10 @@ def best_of(fn, repeat=7, number=200):
 
 
 def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="the sagittal model, 3 calls each (a check that it runs)")
+    quick = parser.parse_args().quick
+    timing = {"repeat": 1, "number": 3} if quick else {}
     out = {"machine": platform.processor() or platform.machine(), "python": platform.python_version()}
     m = compile_myotorso()
     d = mujoco.MjData(m)
@@ -39,10 +45,10 @@ def main():
     for label, source in sources.items():
         if label != "trunk_drake" and source is None:
             continue
-        for dofs in ("sagittal", "spine3d"):
+        for dofs in ("sagittal",) if quick else ("sagittal", "spine3d"):
             model = td.load_model(source, dofs=dofs)
             q = np.array([rng.uniform(*c.range) * 0.5 if c.source_joint else 0.0 for c in model.coordinate_info])
-            best, median = best_of(lambda: model.path_state(q))
+            best, median = best_of(lambda: model.path_state(q), **timing)
             out[f"{label}_{dofs}_ms"] = {"best": best * 1e3, "median": median * 1e3}
     out["load_average"] = os.getloadavg()[0]
 
@@ -52,7 +58,7 @@ def main():
         mujoco.mj_tendon(m, d)
         mujoco.mj_transmission(m, d)
 
-    best, median = best_of(mj)
+    best, median = best_of(mj, **timing)
     out["mujoco_ms"] = {"best": best * 1e3, "median": median * 1e3}
     out["n_muscles"] = int(m.nu)
     out["target_ms"] = 0.5

@@ -91,3 +91,16 @@ def test_dask_local_cluster(tmp_path):
     rows = {r["case_id"]: r for r in read_rows(tmp_path)}
     assert rows[FAILING["case_id"]]["status"] == "error"
     assert sum(r["status"] == "ok" for r in rows.values()) == 6
+
+
+def test_strength_batch_command_on_a_dask_cluster(tmp_path, capsys):
+    """`trunk-drake strength-batch GRID --cluster ADDRESS`, the README's command-table form."""
+    from trunk_drake.cli import main
+
+    distributed = pytest.importorskip("dask.distributed")
+    grid = tmp_path / "grid.toml"
+    grid.write_text('[grid]\ndirection = ["extension", "flexion"]\n')
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        assert main(["strength-batch", str(grid), "--cluster", cluster.scheduler_address, "--no-progress",
+                     "--out", str(tmp_path / "out")]) == 0
+    assert json.loads(capsys.readouterr().out)["ok"] == 2

@@ -39,9 +39,10 @@ def test_reproduce_quick_runs_every_experiment(tmp_path, capsys):
 
 
 def test_fit_on_one_short_trial(tmp_path, capsys):
-    assert main(["fit", str(REFERENCE / "trial_1hz_a.csv"), "--t-max", "3", "--max-iterations", "1", "--json",
-                 "--out", str(tmp_path)]) == 0
+    assert main(["fit", str(REFERENCE / "trial_1hz_a.csv"), "--t-max", "3", "--max-iterations", "1", "--dofs", "rhythm",
+                 "--starts", "2", "--workers", "1", "--json", "--out", str(tmp_path)]) == 0
     summary = json.loads(capsys.readouterr().out)
+    assert len(json.loads((tmp_path / "fit.json").read_text())["starts"]) == 2
     assert len(summary["gains"]["kp"]) == 7 and (tmp_path / "gains.toml").exists() and (tmp_path / "fit_time.png").exists()
 
 
@@ -56,7 +57,7 @@ def test_strength_batch_on_a_small_grid(tmp_path, capsys):
 def test_gap_benchmark_one_case(tmp_path, capsys):
     # short form: two candidates instead of the eleven (3 min instead of 12)
     assert main(["gap-benchmark", "--case", "no_effect_0", "--candidates", "reflex_delay", "extra_damping",
-                 "--json", "--out", str(tmp_path)]) == 0
+                 "--workers", "1", "--json", "--out", str(tmp_path)]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["cases"] == 1 and summary["failed"] == []
     assert (tmp_path / "cases" / "no_effect_0" / "report.md").exists()

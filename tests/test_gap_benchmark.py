@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from trunk_drake.gap.benchmark import best_gains_only_chi2, summarize, summary_markdown
+from trunk_drake.gap.benchmark import best_gains_only_chi2, cases, select_cases, summarize, summary_markdown
 from trunk_drake.gap.synthetic import add_noise, signature_chi2
 from trunk_drake.io.trials import LUMBAR_LEVELS, Trial
 
@@ -182,3 +182,13 @@ def test_the_gains_only_rival_of_the_truth_is_the_best_gains_only_model_the_diag
              {"action": "partners", "model": ["golgi_feedback"]}]
     diagnosis = SimpleNamespace(options={"scores": {"refit_heldout_chi2": 42991.0}}, steps=steps)
     assert best_gains_only_chi2(diagnosis) == 17510.0
+
+
+def test_the_readme_case_counts_quick_run_and_class_selection():
+    """README: 34 cases (18 single, 8 pairs, 4 outside the catalogue, 4 without an effect); `--quick` runs 20;
+    `--case pair outside` selects whole classes."""
+    every = cases()
+    assert {k: sum(c.kind == k for c in every) for k in ("single", "pair", "outside", "none")} == {
+        "single": 18, "pair": 8, "outside": 4, "none": 4}
+    assert len(cases(quick=True)) == 20
+    assert [c.name for c in select_cases(["pair", "outside"])] == [c.name for c in every if c.kind in ("pair", "outside")]

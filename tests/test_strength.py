@@ -170,3 +170,7 @@ def test_cli_strength_rhythm(capsys):
     report = json.loads(capsys.readouterr().out)
     assert "2 deg on its bushing" in report["configuration"] and "without passive" in report["configuration"]
     assert "with_passive" in report["results"]["flexion"]["variants"]
+    assert main(["strength", "--dofs", "rhythm", "--direction", "extension", "--min-activation", "0.01", "--no-sweep",
+                 "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert set(report["results"]) == {"extension"} and "activations in [0.01, 1]" in report["configuration"]

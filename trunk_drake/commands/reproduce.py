@@ -15,6 +15,8 @@ def add_run_arguments(parser) -> None:
     parser.add_argument("--out", required=True, help="output folder (report.md, report.json, one folder per experiment)")
     parser.add_argument("--workers", type=count, default=2, help="parallel processes for sweeps and fits (default 2)")
     parser.add_argument("--force", action="store_true", help="recompute experiments already in report.json")
+    parser.add_argument("--quick", action="store_true",
+                        help="every experiment shortened to seconds (a check that each runs, not a result)")
 
 
 def add_command(sub) -> None:
@@ -24,8 +26,6 @@ def add_command(sub) -> None:
     add_run_arguments(p)
     p.add_argument("--only", nargs="+", metavar="NAME", choices=[e.name for e in EXPERIMENTS],
                    help="run only these experiments (and what they require)")
-    p.add_argument("--quick", action="store_true",
-                   help="every experiment shortened to seconds (a check that each runs, not a result; about 20 s)")
     p.set_defaults(func=run, resumable=True)
 
 
@@ -51,5 +51,5 @@ def script_main(script: str) -> int:
     args = parser.parse_args()
     with warnings.catch_warnings():
         warnings.showwarning = plain_warning
-        report = run_experiments(args.out, [name], force=args.force, workers=args.workers)
+        report = run_experiments(args.out, [name], force=args.force, workers=args.workers, quick=args.quick)
     return 0 if report["experiments"][name]["status"] == "ok" else 1
