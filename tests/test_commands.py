@@ -210,8 +210,11 @@ def test_diagnose_runs_end_to_end_on_data_files(tmp_path):
         write_csv(data / f"trial_{name}.csv", time=trial.time, columns=columns, in_degrees=False)
     out = tmp_path / "out"
     assert truth.kp != nominal.kp  # the gains are mis-set too
-    assert main(["diagnose", str(data), "--out", str(out), "--candidates", "extra_damping", "reflex_delay",
-                 "--refine", "1", "--no-animation", "--json"]) == 0
+    gains = tmp_path / "gains.toml"  # the preset's own, as `--gains` (e.g. a fit's gains.toml) gives them
+    gains.write_text("".join(f"[{k}]\n" + "".join(f"{g} = {v!r}\n" for g, v in table.items())
+                             for k, table in (("kp", nominal.kp), ("kv", nominal.kv))))
+    assert main(["diagnose", str(data), "--out", str(out), "--gains", str(gains), "--candidates", "extra_damping",
+                 "reflex_delay", "--refine", "1", "--workers", "2", "--no-animation", "--json"]) == 0
     diagnosis = json.loads((out / "diagnosis.json").read_text())
     assert diagnosis["selected"] == ["extra_damping"], diagnosis["verdict"]
     assert (out / "report.md").exists() and not (out / "simulations.pickle").exists()
