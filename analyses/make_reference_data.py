@@ -79,8 +79,8 @@ def main():
     (out / "truth_feedforward.csv").write_text("muscle,excitation\n" + "".join(
         f"{m},{u!r}\n" for m, u in zip(model.muscles, options.feedforward.tolist())))
     for name, bandwidth, seed in TRIALS:
-        result = simulate(model, duration=args.duration, bandwidth=bandwidth, seed=seed, options=options, log_rate=FS, integrator=INTEGRATOR,
-                          accuracy=ACCURACY)
+        result = simulate(model, duration=args.duration, bandwidth=bandwidth, seed=seed, options=options, log_rate=FS,
+                          integrator=INTEGRATOR, accuracy=ACCURACY)
         noise = lambda: rng.normal(0.0, np.radians(NOISE_DEG), len(result.time))  # noqa: E731
         levels = {f"{lvl}_rad": result.coordinate(lvl) + noise() for lvl in LUMBAR_LEVELS}
         columns = {"platform_displacement_m": result.platform[:, 0], "lumbar_rotation_rad": result.lumbar_rotation + noise(), **levels}

@@ -59,7 +59,8 @@ def main():
                "central": [branches["central"].real, abs(branches["central"].imag)]}
         for side in ("flexion", "extension"):
             rate, shape = loop.branch(x_eq, branches[side].real, np.r_[modes[side], np.zeros(x_eq.size - loop.nq)])
-            row[side] = {"predicted_per_s": rate.real, "simulated_per_s": deviation_rate(loop, x_eq, shape, rate.real, longest)}
+            row[side] = {"predicted_per_s": rate.real,
+                         "simulated_per_s": deviation_rate(loop, x_eq, shape, rate.real, longest)}
         rows.append(row)
         print(json.dumps(row), flush=True)
     (out / "simulation_check.json").write_text(json.dumps({"rows": rows, "metadata": run_metadata(model)}, indent=2,

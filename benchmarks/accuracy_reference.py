@@ -3,16 +3,16 @@
 Simulates both check trials (20 s) with radau3 at accuracy 1e-6 and writes their lumbar
 rotation at 100 Hz to benchmarks/reference/accurate_lumbar_rotation.csv; prints JSON.
 Rerun it only when the model's physics change (never to absorb a numerical change).
-Usage: python benchmarks/accuracy_reference.py [--duration S] [--out FILE]   (defaults: the check's 20 s, the reference file)
+Usage: python benchmarks/accuracy_reference.py [--duration S] [--out FILE]
+(defaults: the check's 20 s and its reference file)
 """
 
 import argparse
 import json
 import subprocess
-
-from trunk_drake.accuracy import DURATION, REFERENCE_ACCURACY, REFERENCE_FILE, TRIALS, trial_model, trial_options
 from pathlib import Path
 
+from trunk_drake.accuracy import DURATION, REFERENCE_ACCURACY, REFERENCE_FILE, TRIALS, trial_model, trial_options
 from trunk_drake.io.storage import write_csv
 from trunk_drake.simulation import simulate
 
@@ -23,8 +23,8 @@ def main():
     parser.add_argument("--out", type=Path, default=REFERENCE_FILE, help="CSV to write (default: the check's reference)")
     args = parser.parse_args()
     models = {name: trial_model(name) for name in TRIALS}
-    results = {name: simulate(models[name], duration=args.duration, accuracy=REFERENCE_ACCURACY, **trial_options(models[name], name))
-               for name in TRIALS}
+    results = {name: simulate(models[name], duration=args.duration, accuracy=REFERENCE_ACCURACY,
+                              **trial_options(models[name], name)) for name in TRIALS}
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
     time = results[TRIALS[0]].time
     args.out.parent.mkdir(parents=True, exist_ok=True)

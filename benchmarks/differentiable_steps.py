@@ -3,7 +3,8 @@ replayed runge_kutta3 step sequence at several accuracies, and on fixed runge_ku
 columns on a 1e-6 sequence; steps and wall time per 24 s trial of the gap benchmark's truth at 1 and 3 Hz.
 Prints JSON.
 
-Usage: python benchmarks/differentiable_steps.py [--quick]   (`--quick`: 2 s, 1 Hz, one group, one accuracy; a check that it runs)
+Usage: python benchmarks/differentiable_steps.py [--quick]
+(`--quick`: 2 s, 1 Hz, one group, one accuracy; a check that it runs, not a result)
 """
 
 import argparse

@@ -27,10 +27,10 @@ def main():
     noise = np.radians(0.1)
     truth = truth_options(nominal, Case("delay", "single", (("reflex_delay", {"delay": 0.04}),), seed=7))
     designs = [("1hz_a", 1.0, 71), ("1hz_b", 1.0, 72), ("3hz", 3.0, 73)]
-    short = {"candidates": ["reflex_delay", "extra_damping"], "refine": 1, "period": 5.0} if args.quick else {}
-    trials = synthetic_trials(model, truth, designs[1:] if args.quick else designs, noise, seed=7,
-                              period=short.get("period", 20.0))
-    d = diagnose_gap(model, trials, nominal, noise=noise, workers=2, progress=args.log or False, **short)
+    period = 5.0 if args.quick else 20.0
+    short = {"candidates": ["reflex_delay", "extra_damping"], "refine": 1} if args.quick else {}
+    trials = synthetic_trials(model, truth, designs[1:] if args.quick else designs, noise, seed=7, period=period)
+    d = diagnose_gap(model, trials, nominal, noise=noise, workers=2, period=period, progress=args.log or False, **short)
     print(json.dumps({
         "wall_time_s": d.wall_time_s, "target_s": 120, "trials": len(trials), "candidates": len(d.ranking),
         "simulations": d.options["scores"]["simulations"], "verdict": d.verdict, "selected": d.selected,

@@ -28,12 +28,14 @@ def main():
     rows = []
     for integrator, accuracy, max_step in SETTINGS[:2] if args.quick else SETTINGS:
         start = time.perf_counter()
-        result = simulate(model, duration=args.duration, integrator=integrator, accuracy=accuracy, max_step=max_step, **options)
+        result = simulate(model, duration=args.duration, integrator=integrator, accuracy=accuracy, max_step=max_step,
+                          **options)
         summary = result.summary()
         rows.append({"integrator": integrator, "accuracy": accuracy, "max_step_s": max_step, "steps": summary["steps"],
                      "derivative_evaluations": summary["derivative_evaluations"], "wall_time_s": time.perf_counter() - start,
                      "rms_deviation_deg": rms_deviation_deg(result, "default")})
-    print(json.dumps({"trial": f"default passenger, {args.duration:g} s, 0.2-1 Hz, seed 0", "settings": rows, "load_average": os.getloadavg()},
+    print(json.dumps({"trial": f"default passenger, {args.duration:g} s, 0.2-1 Hz, seed 0", "settings": rows,
+                      "load_average": os.getloadavg()},
                      indent=2))
 
 

@@ -49,4 +49,3 @@ def test_models_readme_block_gives_the_values_it_shows(monkeypatch):
     assert len(shown) == 2
     for expression, comment in shown:
         assert eval(expression, scope) == pytest.approx(float(comment.split()[0])), expression
-
