@@ -4,7 +4,9 @@ held-out chi2 against the truth's. Run on the code to compare (PYTHONPATH) to se
 does to an effect in wide, small units (the stiffening's cubic coefficient, 0-2000 1/rad^2). With `--held V ...` the
 effect (of one parameter) is instead held at each value while the gains are refitted: a profile over it.
 
-    python analyses/gap_lm_scaling_check.py CASE EFFECT [--folder RUN_FOLDER] [--rounds N] [--held V ...]
+    python analyses/gap_lm_scaling_check.py CASE EFFECT [--folder RUN_FOLDER] [--rounds N] [--held V ...] [--quick]
+
+`--quick`: 2 s trials (a check that it runs, not a result; with `--rounds 1`, seconds).
 
 2026-12-06, on the finals of docs/gap_benchmark/search_ca892f7 (polish rounds of 3 steps, at most 4; before: 8949ae1,
 after: the per-coordinate scale of `levenberg_marquardt`):
@@ -38,9 +40,10 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=4)
     parser.add_argument("--held", type=float, nargs="+", help="hold the added effect's parameter at each value (a profile): "
                         "the final's gains alone refitted, its other effects dropped")
+    parser.add_argument("--quick", action="store_true", help="2 s trials")
     args = parser.parse_args()
     start = time.perf_counter()
-    case = published_case(args.case, args.folder)
+    case = published_case(args.case, args.folder, args.quick)
     rows = (json.loads(line) for line in (Path(args.folder) / "results.jsonl").read_text().splitlines())
     truth = next(r for r in rows if r["case"] == args.case).get("truth_heldout_chi2")
     e = effect(args.effect)

@@ -2,19 +2,20 @@
 take the run's final model and the effects that passed alone in its first step (refined or checked), and run the
 partner test on them.
 
-    python analyses/gap_partner_check.py CASE RUN_FOLDER   # e.g. docs/gap_benchmark/all_gains
+    python analyses/gap_partner_check.py CASE RUN_FOLDER [--quick]   # e.g. docs/gap_benchmark/all_gains
 
+`--quick`: 2 s trials, one partner candidate, refits of one round (a check that it runs, not a result).
 Prints the test's progress, then one JSON line: the steps it records, the model it returns, simulations and wall time.
 The result of 2026-12-04 on reflex_delay_delay0.04+slow_activation_scale2.5 (docs/gap_benchmark/all_gains) is in the
 README (the partner test)."""
 
 import json
-import sys
 import time
 from types import SimpleNamespace
 
 import numpy as np
 
+from trunk_drake.commands import published_case_arguments
 from trunk_drake.gap.benchmark import published_case
 from trunk_drake.gap.catalogue import effect
 from trunk_drake.gap.refit import TimeDomainFitter
@@ -23,11 +24,11 @@ from trunk_drake.io.trials import OUTPUT_NAMES
 from trunk_drake.parallel import WorkerPool
 
 
-def main(name: str, folder: str) -> dict:
+def main(name: str, folder: str, quick: bool = False) -> dict:
     start = time.perf_counter()
-    case = published_case(name, folder)
+    case = published_case(name, folder, quick)
     data, space, ranking = case["data"], case["space"], case["diagnosis"]["ranking"]
-    settings = Settings()
+    settings = Settings(refine=1, rounds=1) if quick else Settings()
     with WorkerPool(case["model"], 2) as pool:
         fitter = TimeDomainFitter(pool, space, data, case["noise"], OUTPUT_NAMES)
         search = _Search(space, SimpleNamespace(trials=data), fitter, [effect(r["effect"]) for r in ranking],
@@ -44,4 +45,5 @@ def main(name: str, folder: str) -> dict:
 
 
 if __name__ == "__main__":
-    print(json.dumps(main(*sys.argv[1:3]), default=float))
+    args = published_case_arguments(__doc__, "2 s trials, one partner candidate, refits of one round")
+    print(json.dumps(main(args.case, args.folder, args.quick), default=float))

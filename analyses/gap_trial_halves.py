@@ -2,9 +2,10 @@
 two values (the case's gains), their difference in chi-square units of the 0.1 deg noise (offsets removed) in each
 half of the steady period and in 2 s windows. The diagnosis fits on the first halves and scores on the second.
 
-    python analyses/gap_trial_halves.py [CASE] [EFFECT PARAMETER A B]
+    python analyses/gap_trial_halves.py [CASE] [EFFECT PARAMETER A B] [--quick]
 
-Default: stiffening_discs_cubic400, the stiffening's cubic coefficient at 400 against 50 (1/rad^2).
+Default: stiffening_discs_cubic400, the stiffening's cubic coefficient at 400 against 50 (1/rad^2). `--quick`: 2 s
+trials (a check that it runs, not a result).
 
 2026-12-06 (on 51336de, the default passenger's truth): the difference is about twice as large in the second halves
 (5.3 / 10.4, 6.3 / 13.0 and 49.0 / 100.8 on the trials 1hz_a, 1hz_b and 3hz), and it sits in one 2 s window of each
@@ -25,11 +26,9 @@ import argparse
 
 import numpy as np
 
-from trunk_drake.gap.benchmark import Case, cases, truth_configuration, truth_options
-from trunk_drake.gap.synthetic import clean_trials
+from trunk_drake.gap.benchmark import Case, case_trials, cases, trial_timing, truth_configuration
 
 NOISE_RAD = np.radians(0.1)
-STEADY = (2.0, 22.0)  # s: the benchmark trials' 20 s period after the 2 s fade-in
 
 
 def main() -> None:
@@ -37,23 +36,25 @@ def main() -> None:
     parser.add_argument("case", nargs="?", default="stiffening_discs_cubic400")
     parser.add_argument("change", nargs="*", default=["stiffening_discs", "cubic", "400", "50"],
                         help="EFFECT PARAMETER A B: the effect's parameter at A against B")
+    parser.add_argument("--quick", action="store_true", help="2 s trials")
     args = parser.parse_args()
+    timing = trial_timing(args.quick)
+    t0, t1 = timing["fade"], timing["fade"] + timing["period"]  # s: the steady period after the fade-in
     name, parameter, a, b = args.change[0], args.change[1], float(args.change[2]), float(args.change[3])
     model, nominal = truth_configuration()
     case = next(c for c in cases(False) if c.name == args.case)
-    designs = [("1hz_a", 1.0, case.seed), ("1hz_b", 1.0, case.seed + 1000), ("3hz", 3.0, case.seed + 2000)]
-    runs = [clean_trials(model, truth_options(nominal, Case(case.name, case.kind, ((name, {parameter: v}),), case.seed)), designs)
-            for v in (a, b)]
+    runs = [case_trials(model, Case(case.name, case.kind, ((name, {parameter: v}),), case.seed), nominal, NOISE_RAD,
+                        **timing)[2] for v in (a, b)]
     print(f"{case.name}: {name} {parameter} {a:g} against {b:g}, chi2 at 0.1 deg noise")
     for ta, tb in zip(*runs):
         t = ta.time
         d = np.column_stack([ta.lumbar_rotation - tb.lumbar_rotation] + [ta.levels[k] - tb.levels[k] for k in ta.levels])
-        steady = (t >= STEADY[0]) & (t < STEADY[1])
-        mid = 0.5 * (STEADY[0] + STEADY[1])
+        steady = (t >= t0) & (t < t1)
+        mid = 0.5 * (t0 + t1)
         halves = [_chi2(d, steady & (t < mid)), _chi2(d, steady & (t >= mid))]
-        windows = [_chi2(d, (t >= w) & (t < w + 2.0), d[steady].mean(axis=0)) for w in np.arange(STEADY[0], STEADY[1], 2.0)]
-        means = [np.degrees(ta.lumbar_rotation[(t >= w) & (t < w + 2.0)].mean()) for w in np.arange(STEADY[0], STEADY[1], 2.0)]
-        print(f"  {ta.source}: halves {halves[0]:.1f} / {halves[1]:.1f}; 2 s windows from {STEADY[0]:g} s: "
+        windows = [_chi2(d, (t >= w) & (t < w + 2.0), d[steady].mean(axis=0)) for w in np.arange(t0, t1, 2.0)]
+        means = [np.degrees(ta.lumbar_rotation[(t >= w) & (t < w + 2.0)].mean()) for w in np.arange(t0, t1, 2.0)]
+        print(f"  {ta.source}: halves {halves[0]:.1f} / {halves[1]:.1f}; 2 s windows from {t0:g} s: "
               + " ".join(f"{w:.1f}" for w in windows) + "; mean lumbar rotation (deg): " + " ".join(f"{m:+.2f}" for m in means))
 
 

@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+RUNS = ROOT / "docs" / "gap_benchmark"  # published gap-benchmark runs: the analyses/gap_*.py checks read their cases
 SHORT_FORMS = {  # script: the arguments of its short form ("{tmp}": a temporary folder)
     "benchmarks/accuracy_reference.py": ["--duration", "0.2", "--out", "{tmp}/reference.csv"],
     "benchmarks/cpu_time.py": ["--duration", "0.2"],
@@ -24,6 +25,13 @@ SHORT_FORMS = {  # script: the arguments of its short form ("{tmp}": a temporary
     "benchmarks/simulate.py": ["--duration", "0.3", "--compliant-duration", "0.05"],
     "benchmarks/stability.py": ["--quick"],
     "benchmarks/static.py": ["--quick"],
+    "analyses/gap_lm_scaling_check.py": ["stiffening_discs_cubic400", "stiffening_discs", "--folder", f"{RUNS}/search_ca892f7",
+                                         "--rounds", "1", "--quick"],
+    "analyses/gap_pair_profile.py": ["0.04", f"{RUNS}/all_gains", "--quick"],
+    "analyses/gap_partner_check.py": ["reflex_delay_delay0.04", f"{RUNS}/all_gains", "--quick"],
+    "analyses/gap_polish_check.py": ["reflex_delay_delay0.04", f"{RUNS}/default_passenger", "--quick"],
+    "analyses/gap_restart_check.py": ["reflex_delay_delay0.04", f"{RUNS}/search_640a2ea", "--quick"],
+    "analyses/gap_trial_halves.py": ["--quick"],
     "analyses/make_reference_data.py": ["--out", "{tmp}", "--duration", "0.3"],
     "analyses/stability_configurations.py": ["--quick", "--out", "{tmp}"],
     "analyses/stability_vs_simulation.py": ["--quick", "--out", "{tmp}"],
@@ -34,10 +42,6 @@ PRINTS_JSON = {s for s in SHORT_FORMS if s.startswith("benchmarks/")} | {"analys
 ANIMATION = {"benchmarks/animate.py", "analyses/animation_screenshot.py"}  # test_animation_scripts: one writes, one shoots
 BY_HAND = {  # script: why CI does not run it
     "benchmarks/instructions.py": "runs Python under valgrind: still running after a CPU-minute for 0.02 s simulated",
-    **{f"analyses/{name}.py": "a check of the gap search on a published benchmark case: it regenerates the case's three "
-       "24 s trials and refits them, minutes to an hour; its names are checked by test_package_layout"
-       for name in ("gap_lm_scaling_check", "gap_pair_profile", "gap_partner_check", "gap_polish_check",
-                    "gap_restart_check", "gap_trial_halves")},
 }
 
 

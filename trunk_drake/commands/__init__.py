@@ -60,6 +60,16 @@ def cluster_argument(parser, runs: str) -> None:
                         help=f"Dask scheduler address, e.g. tcp://host:8786: {runs} run on its workers (--workers is then unused)")
 
 
+def published_case_arguments(doc: str, quick: str) -> argparse.Namespace:
+    """The command line `CASE RUN_FOLDER [--quick]` of a check on a published gap-benchmark case
+    (analyses/gap_*_check.py): `doc`, the script's docstring; `quick`, what `--quick` shortens."""
+    parser = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    parser.add_argument("case", help="the case's name (trunk-drake gap-benchmark --help lists the cases)")
+    parser.add_argument("folder", help="the run's folder, e.g. docs/gap_benchmark/all_gains")
+    parser.add_argument("--quick", action="store_true", help=f"{quick} (a check that it runs, not a result)")
+    return parser.parse_args()
+
+
 def plain_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """warnings.showwarning for users: one line, no Python source."""
     print(f"warning: {message}", file=file or sys.stderr)

@@ -43,6 +43,7 @@ GAIN_SPREAD = 0.2  # SD of log(gain factor) of the perturbed nominal gains
 THRESHOLD = 10.0  # held-out dBIC needed to claim an effect (the diagnosis' default)
 FADE_S = 2.0  # fade-in of the multisines, left out of the observability check
 CLASSES = ("single", "pair", "outside", "none")
+PERIOD_S = 20.0  # the multisines' period: 24 s trials with the fades
 
 
 def truth_configuration():
@@ -164,30 +165,38 @@ def _lag_kinematics(trials, lag_s: float):
     return out
 
 
-def case_trials(model, case: Case, nominal: TrunkOptions, noise_rad: float):
+def trial_timing(quick: bool = False) -> dict:
+    """The "period" and "fade" (s) of the cases' multisines: the benchmark's, or (quick) those of 2 s trials, one period
+    of 1 s after a 0.5 s fade-in, for a check that a script runs (`published_case`), not a result."""
+    return {"period": 1.0, "fade": 0.5} if quick else {"period": PERIOD_S, "fade": FADE_S}
+
+
+def case_trials(model, case: Case, nominal: TrunkOptions, noise_rad: float, period: float = PERIOD_S,
+                fade: float = FADE_S):
     """The case's multisine designs, truth options, noise-free trials and "measured" trials (noise added)."""
     designs = [("1hz_a", 1.0, case.seed), ("1hz_b", 1.0, case.seed + 1000), ("3hz", 3.0, case.seed + 2000)]
     truth = truth_options(nominal, case)
-    clean = clean_trials(model, truth, designs)
+    clean = clean_trials(model, truth, designs, period=period, fade=fade)
     if case.kind == "outside" and case.effects[0][0] == "kinematics_lag":
         clean = _lag_kinematics(clean, case.effects[0][1]["lag_s"])
     return designs, truth, clean, add_noise(clean, noise_rad, seed=case.seed)
 
 
-def published_case(name: str, folder) -> dict:
+def published_case(name: str, folder, quick: bool = False) -> dict:
     """A case of the benchmark run in `folder`, for checks offline (analyses/gap_*_check.py): its data regenerated at
     the default noise ("model", "nominal", "truth" options, prepared "data", "noise" per output in rad), the run's "diagnosis"
     (diagnosis.json), the "space" around the nominal gains with every gain direction, and the run's final model
-    there: "effects" and "x" (gain coordinates, then each effect's)."""
+    there: "effects" and "x" (gain coordinates, then each effect's). `quick`: the trials of `trial_timing`'s quick
+    check."""
     model, nominal = truth_configuration()
-    noise_rad = float(np.radians(DEFAULT_NOISE_DEG))
-    _, truth, _, noisy = case_trials(model, select_cases([name])[0], nominal, noise_rad)
+    noise_rad, timing = float(np.radians(DEFAULT_NOISE_DEG)), trial_timing(quick)
+    _, truth, _, noisy = case_trials(model, select_cases([name])[0], nominal, noise_rad, **timing)
     diagnosis = json.loads((Path(folder) / "cases" / name / "diagnosis.json").read_text())
     final, space = diagnosis["final"], SearchSpace.around(model, nominal)
     effects = tuple(effect(n) for n in final["effects"])
     gains = space.layout.vector(final["gains"]) - space.layout.vector(space.layout.fixed)
     x = np.concatenate([gains] + [e.coordinates(final["effects"][e.name]) for e in effects])
-    return {"model": model, "nominal": nominal, "truth": truth, "data": prepare_trials(noisy, OUTPUT_NAMES),
+    return {"model": model, "nominal": nominal, "truth": truth, "data": prepare_trials(noisy, OUTPUT_NAMES, **timing),
             "noise": np.full(len(OUTPUT_NAMES), noise_rad), "diagnosis": diagnosis, "space": space, "effects": effects, "x": x}
 
 

@@ -85,6 +85,7 @@ class Settings:
     refine: int = 3
     gains_first: bool = False  # widen the gains as far as they pass before any effect is weighed (`_Search.adopt`);
     #   the nested test alone then decides a claim (`_Search.claim`)
+    rounds: int = POLISH_ROUNDS  # at most, of each refit in rounds (`_Search.in_rounds`; 1: a quick check's)
 
 
 @dataclass
@@ -110,6 +111,11 @@ class _Search:
         self.models: dict[frozenset, Fit] = {}  # the jointly fitted models, by effect set
         self.all_gains = False  # searching on every gain direction (after the polish): every refit in rounds (`polish_fit`)
         self.better: Fit | None = None  # the best model of the current effects a `claim` refitted without its candidate
+
+    def in_rounds(self, effects, x0, space: SearchSpace | None = None, **kw) -> Fit:
+        """`polish_fit` in `space` (default the search's) with the search's threshold and `Settings.rounds`."""
+        return polish_fit(self.fitter, effects, x0, space or self.space, self.settings.threshold,
+                          rounds=self.settings.rounds, **kw)
 
     def dbic(self, without: Fit, with_: Fit, effect) -> float:
         """Held-out evidence for `effect` in `with_` against `without`."""
@@ -242,7 +248,7 @@ class _Search:
         the better on the training halves: the refit of an added effect runs further gain rounds, which alone can
         gain about the threshold (after the polish a refit from an effect's absence went from dBIC -10.2 to +1.5)."""
         effects, x = self.strip(fit, name, self.space.rank)
-        alone = polish_fit(self.fitter, effects, x, self.space, self.settings.threshold)
+        alone = self.in_rounds(effects, x)
         return alone if alone.outputs is not None and alone.train_chi2 < current.train_chi2 else current
 
     def screen_additions(self, current: Fit, names) -> list[dict]:
@@ -387,14 +393,14 @@ class _Search:
         where the check simulated it there): the added effect and the gains (`added`); on all gain directions every
         coordinate, in rounds like the polish."""
         if self.all_gains:
-            return polish_fit(self.fitter, held, x0, self.space, self.settings.threshold, on=on)
+            return self.in_rounds(held, x0, on=on)
         return self.fitter.fit(held, x0, self.added(current, x0.size), on=on)
 
     def joint(self, names, x0, space: SearchSpace | None = None) -> Fit:
         """Gains and every effect of `names` refitted together with nonlinear simulations (in `space`, default the
         fitter's); on all gain directions in rounds like the polish."""
         if self.all_gains and space is None:
-            return polish_fit(self.fitter, self.effects(names), x0, self.space, self.settings.threshold)
+            return self.in_rounds(self.effects(names), x0)
         return self.fitter.fit(self.effects(names), x0, np.arange(len(x0)), max_iterations=JOINT_ITERATIONS, space=space)
 
     def without(self, current: Fit, name: str) -> Fit:
@@ -436,22 +442,21 @@ class _Search:
         the delay's first-step 28.8 ms it stopped at 27.5 ms (training chi2 18,682; ten rounds did not move it), while
         with the delay held at 40 ms the rest reached 17,856 (`analyses/gap_pair_profile.py`). Returns the best refit
         of each that simulated, by name."""
-        n, threshold = final.x.size, self.settings.threshold
+        n = final.x.size
         calls, keys = [], []
         for name, x in own.items():
             effects = self.effects(final.effects) + (self.candidates[name],)
-            calls.append(lambda effects=effects, x0=np.concatenate([final.x, x]):
-                         polish_fit(self.fitter, effects, x0, self.space, threshold))
-            calls += [lambda effects=effects, x0=x0: polish_fit(self.fitter, effects, x0, self.space, threshold,
-                                                                free=np.arange(n)) for x0 in self.across(final.x, effects)]
+            calls.append(lambda effects=effects, x0=np.concatenate([final.x, x]): self.in_rounds(effects, x0))
+            calls += [lambda effects=effects, x0=x0: self.in_rounds(effects, x0, free=np.arange(n))
+                      for x0 in self.across(final.x, effects)]
             keys += [(name, False)] + [(name, True)] * len(START_FRACTIONS)
         best, held = {}, {}
         for (name, fixed), fit in zip(keys, self.fitter.concurrently(calls)):
             if fit.outputs is not None and (name not in best or fit.train_chi2 < best[name].train_chi2):
                 best[name], held[name] = fit, fixed
         names = [name for name in best if held[name]]
-        freed = self.fitter.concurrently([lambda fit=best[name]: polish_fit(
-            self.fitter, self.effects(fit.effects), fit.x, self.space, threshold) for name in names])
+        freed = self.fitter.concurrently([lambda fit=best[name]: self.in_rounds(self.effects(fit.effects), fit.x)
+                                          for name in names])
         for name, fit in zip(names, freed):
             self.say(f"partner {name}: best held at {best[name].values[name]} (training chi2 {best[name].train_chi2:.0f}), "
                      f"freed from there: {fit.train_chi2:.0f}")
@@ -538,8 +543,7 @@ class _Search:
         2.5), and more rounds from it gained 3-4 each; from the nominal gains the polish reached 17,827 (41.3 ms, 2.47) in
         189 simulations. Kept where it fits the training halves better by more than the threshold; then every effect
         must keep its place there (`backward`)."""
-        fit = polish_fit(self.fitter, self.effects(final.effects), nominal_start(final.x, self.space), self.space,
-                         self.settings.threshold)
+        fit = self.in_rounds(self.effects(final.effects), nominal_start(final.x, self.space))
         if fit.outputs is None or fit.train_chi2 >= final.train_chi2 - self.settings.threshold:
             self.say("restarted from the nominal gains: no better on the training halves"
                      + ("" if fit.outputs is None else f" ({fit.train_chi2:.0f} against {final.train_chi2:.0f})"))
@@ -563,7 +567,7 @@ class _Search:
         the truth was selected."""
         full = self.wider(self.spare.shape[1])
         x0 = np.concatenate([final.x[:space.rank], np.zeros(full.rank - space.rank), final.x[space.rank:]])
-        fit = polish_fit(self.fitter, self.effects(final.effects), x0, full, self.settings.threshold)
+        fit = self.in_rounds(self.effects(final.effects), x0, space=full)
         if fit.outputs is None or fit.train_chi2 > final.train_chi2:
             final = dataclasses.replace(final, x=x0)  # the same model: zero along the new directions
             self.to_all_gains(full, final)

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 
 from trunk_drake.io.trials import LUMBAR_LEVELS, Trial
-from trunk_drake.signals import make_multisine
+from trunk_drake.signals import DEFAULT_FADE_S, make_multisine
 from trunk_drake.simulation import simulate
 
 
@@ -19,11 +19,13 @@ def synthetic_trials(model, options, designs, noise_rad: float, seed: int = 0, f
     return add_noise(clean_trials(model, options, designs, fs, period), noise_rad, seed)
 
 
-def clean_trials(model, options, designs, fs: float = 100.0, period: float = 20.0) -> list[Trial]:
-    """Noise-free trials of `options` on the multisines `designs` (see synthetic_trials)."""
+def clean_trials(model, options, designs, fs: float = 100.0, period: float = 20.0,
+                 fade: float = DEFAULT_FADE_S) -> list[Trial]:
+    """Noise-free trials of `options` on the multisines `designs` (see synthetic_trials), faded in and out over `fade` s."""
     trials = []
     for name, bandwidth, signal_seed in designs:
-        signal = make_multisine(period=period, f_max=bandwidth, seed=signal_seed, lines="odd", fade_shape="quintic")
+        signal = make_multisine(period=period, f_max=bandwidth, seed=signal_seed, lines="odd", fade_shape="quintic",
+                                fade_in=fade, fade_out=fade)
         result = simulate(model, perturbation=signal, options=options, log_rate=fs, accuracy=1e-3)
         trials.append(Trial(time=result.time, fs=fs, platform_displacement=result.platform[:, 0],
                             lumbar_rotation=result.lumbar_rotation,
