@@ -1,9 +1,10 @@
-"""Shared test fixtures: the oracle files of ../shared (present in CI, maybe absent elsewhere), and a Ctrl-C that
-native code loses."""
+"""Shared test fixtures: the oracle files of ../shared (present in CI, maybe absent elsewhere), a Ctrl-C that
+native code loses, and a Dask cluster for `--cluster`."""
 
 import os
 import signal
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -48,3 +49,22 @@ def lose_a_ctrl_c(ctrl_c_raises):
         raise TypeError(message)
 
     return lose
+
+
+@dataclass
+class DaskCluster:
+    address: str  # what `--cluster` takes
+    scheduler: object
+
+    def jobs_done(self) -> int:
+        """How many worker-pool jobs (`trunk_drake.parallel._run`, Dask keys "_run-...") the cluster has finished."""
+        prefix = self.scheduler.task_prefixes.get("run")
+        return 0 if prefix is None else prefix.state_counts["memory"]
+
+
+@pytest.fixture
+def dask_cluster():
+    """A Dask cluster in this process (one worker, one thread), for the commands' `--cluster ADDRESS`."""
+    distributed = pytest.importorskip("dask.distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        yield DaskCluster(cluster.scheduler_address, cluster.scheduler)

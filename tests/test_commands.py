@@ -186,30 +186,37 @@ def test_version(capsys):
     assert capsys.readouterr().out.startswith("trunk-drake 0.1.0 (drake ")
 
 
-def test_diagnose_runs_end_to_end_on_data_files(tmp_path):
-    """`trunk-drake diagnose` in a short form: two 10 s-period trials written as CSV beside the reference data's
-    conditions, simulated with the preset's gains perturbed and 20 Nms/rad extra damping; two candidates."""
+def write_trials(folder: Path, period: float):
+    """Two trials (1 and 3 Hz multisines of `period`) as CSV beside the reference data's conditions (the default
+    passenger's rhythm), simulated with the preset's gains perturbed and 20 Nms/rad extra damping; returns the
+    nominal TrunkOptions."""
     from trunk_drake.diagram import TrunkOptions
     from trunk_drake.gap.benchmark import Case, truth_options
     from trunk_drake.gap.synthetic import synthetic_trials
     from trunk_drake.io.storage import write_csv
     from trunk_drake.io.trials import LUMBAR_LEVELS
 
-    data = tmp_path / "data"
-    data.mkdir()
+    folder.mkdir()
     for name in ("conditions.toml", "truth_feedforward.csv"):
-        (data / name).write_text((REFERENCE / name).read_text().replace("period_s = 20.0", "period_s = 10.0"))
+        (folder / name).write_text((REFERENCE / name).read_text().replace("period_s = 20.0", f"period_s = {period}"))
     experiment = load_experiment([REFERENCE])
     nominal = TrunkOptions(**experiment.options, **experiment.preset_gains())
     truth = truth_options(nominal, Case("damping", "single", (("extra_damping", {"damping": 20.0}),), seed=3))
-    model = experiment.model()
-    for trial, name in zip(synthetic_trials(model, truth, [("a", 1.0, 1), ("b", 3.0, 2)], np.radians(0.05), seed=3,
-                                            period=10.0), ("a", "b")):
+    assert truth.kp != nominal.kp  # the gains are mis-set too
+    for trial, name in zip(synthetic_trials(experiment.model(), truth, [("a", 1.0, 1), ("b", 3.0, 2)], np.radians(0.05),
+                                            seed=3, period=period), ("a", "b")):
         columns = {"platform_displacement_m": trial.platform_displacement, "lumbar_rotation_rad": trial.lumbar_rotation,
                    **{f"{lvl}_rad": trial.levels[lvl] for lvl in LUMBAR_LEVELS}}
-        write_csv(data / f"trial_{name}.csv", time=trial.time, columns=columns, in_degrees=False)
+        write_csv(folder / f"trial_{name}.csv", time=trial.time, columns=columns, in_degrees=False)
+    return nominal
+
+
+def test_diagnose_runs_end_to_end_on_data_files(tmp_path):
+    """`trunk-drake diagnose` in a short form: two 10 s-period trials written as CSV beside the reference data's
+    conditions, simulated with the preset's gains perturbed and 20 Nms/rad extra damping; two candidates."""
+    data = tmp_path / "data"
+    nominal = write_trials(data, period=10.0)
     out = tmp_path / "out"
-    assert truth.kp != nominal.kp  # the gains are mis-set too
     gains = tmp_path / "gains.toml"  # the preset's own, as `--gains` (e.g. a fit's gains.toml) gives them
     gains.write_text("".join(f"[{k}]\n" + "".join(f"{g} = {v!r}\n" for g, v in table.items())
                              for k, table in (("kp", nominal.kp), ("kv", nominal.kv))))
@@ -218,3 +225,60 @@ def test_diagnose_runs_end_to_end_on_data_files(tmp_path):
     diagnosis = json.loads((out / "diagnosis.json").read_text())
     assert diagnosis["selected"] == ["extra_damping"], diagnosis["verdict"]
     assert (out / "report.md").exists() and not (out / "simulations.pickle").exists()
+
+
+@pytest.fixture
+def stand_in_search(monkeypatch):
+    """The diagnosis' search (minutes: run by the test above and tests/test_gap.py) replaced by one that keeps the
+    nominal gains; it records what it was given."""
+    import trunk_drake.gap.diagnose
+    from trunk_drake.gap.measures import segment_chi2
+    from trunk_drake.gap.search import SearchResult
+    from trunk_drake.gap.space import Fit
+    from trunk_drake.gap.trials import half
+
+    given = {}
+
+    def search(space, screen, fitter, candidates, settings, nominal, nominal_steps, spare, progress=None):
+        given.update(settings=settings, model=fitter.simulator.model, cluster=fitter.simulator.cluster)
+        trials = fitter.trials
+        train, test = (sum(segment_chi2(t.steady_outputs, y, fitter.noise, half(t, which)) for t, y in zip(trials, nominal))
+                       for which in ("train", "test"))
+        kept = Fit((), np.zeros(space.rank), train, test, {}, outputs=nominal)
+        n_test = sum(t.steady_outputs[half(t, "test")].size for t in trials)
+        return SearchResult(kept, [], [], kept, [], {"n_heldout": n_test, "penalty": float(np.log(n_test)),
+                                                     "refit_heldout_chi2": test}, space)
+
+    monkeypatch.setattr(trunk_drake.gap.diagnose, "search_effects", search)
+    return given
+
+
+def test_diagnose_with_gains_first_on_the_sagittal_levels_on_a_dask_cluster(tmp_path, capsys, stand_in_search, dask_cluster):
+    """`trunk-drake diagnose DATA --gains-first --dofs sagittal --cluster ADDRESS` (the data's preset has the rhythm):
+    the sagittal model's nominal simulations are jobs on the cluster's worker, the search is the gains-first one,
+    and diagnosis.json says so."""
+    data = tmp_path / "data"
+    write_trials(data, period=2.0)
+    out = tmp_path / "out"
+    assert main(["diagnose", str(data), "--out", str(out), "--gains-first", "--dofs", "sagittal",
+                 "--cluster", dask_cluster.address, "--no-animation", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["selected"] == []
+    assert stand_in_search["settings"].gains_first and stand_in_search["cluster"] == dask_cluster.address
+    assert stand_in_search["model"].dofs == "sagittal" and dask_cluster.jobs_done() == 2  # one per trial
+    diagnosis = json.loads((out / "diagnosis.json").read_text())
+    assert diagnosis["options"]["gains_first"] is True and (out / "report.md").exists()
+
+
+def test_diagnose_on_an_osim_model(tmp_path, capsys, stand_in_search, lumbar_c210_path):
+    """`trunk-drake diagnose DATA --model FILE.osim`: the data's preset on the file's model (its rhythm). The
+    animations draw MyoTorso's muscle paths only: without --no-animation the command stops before the work."""
+    data = tmp_path / "data"
+    write_trials(data, period=2.0)
+    out = tmp_path / "out"
+    assert main(["diagnose", str(data), "--out", str(out), "--model", str(lumbar_c210_path), "--json"]) == 2
+    _one_error_line(capsys, "--no-animation")
+    assert stand_in_search == {}
+    assert main(["diagnose", str(data), "--out", str(out), "--model", str(lumbar_c210_path), "--no-animation", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["selected"] == []
+    model = stand_in_search["model"]
+    assert model.spec.name == "Lumbar_C_210" and model.dofs == "rhythm" and (out / "diagnosis.json").exists()

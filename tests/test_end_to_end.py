@@ -46,6 +46,15 @@ def test_fit_on_one_short_trial(tmp_path, capsys):
     assert len(summary["gains"]["kp"]) == 7 and (tmp_path / "gains.toml").exists() and (tmp_path / "fit_time.png").exists()
 
 
+def test_fit_on_a_dask_cluster(tmp_path, capsys, dask_cluster):
+    """`trunk-drake fit DATA --cluster ADDRESS`: every simulation of the fit is a job on the cluster's worker."""
+    assert main(["fit", str(REFERENCE / "trial_1hz_a.csv"), "--t-max", "3", "--max-iterations", "1",
+                 "--cluster", dask_cluster.address, "--json", "--out", str(tmp_path)]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert 0 < dask_cluster.jobs_done() <= summary["n_simulations"]  # a job simulates one point, or several at once
+    assert json.loads((tmp_path / "fit.json").read_text())["n_simulations"] == summary["n_simulations"]
+
+
 def test_strength_batch_on_a_small_grid(tmp_path, capsys):
     grid = tmp_path / "grid.toml"
     grid.write_text('[grid]\ndirection = ["extension", "flexion", "lateral"]\n')

@@ -1,5 +1,8 @@
 """Gap benchmark bookkeeping: noise, effect signatures and the summary's rates."""
 
+import json
+import os
+
 import numpy as np
 import pytest
 
@@ -192,3 +195,49 @@ def test_the_readme_case_counts_quick_run_and_class_selection():
         "single": 18, "pair": 8, "outside": 4, "none": 4}
     assert len(cases(quick=True)) == 20
     assert [c.name for c in select_cases(["pair", "outside"])] == [c.name for c in every if c.kind in ("pair", "outside")]
+
+
+def stand_in_case(model, job):
+    """`benchmark._case_job` without its diagnosis (minutes per case; one runs in test_end_to_end): the row of a case
+    that claims nothing, with what the job and the worker running it were given."""
+    from trunk_drake.gap import benchmark
+
+    case, nominal, noise_rad, workers, candidates, gains_first, progress = job
+    return {**benchmark._identity(case), "selected": [], "ranked_first": None, "ranking": [], "steps": [], "unexplained": False,
+            "verdict": "stand-in", "reduction": None, "reduction_above_noise": None, "wall_time_s": 0.0,
+            "job": {"gains_first": gains_first, "progress": progress and str(progress)},
+            "worker": {"pid": os.getpid(), "model": model.spec.name, "dofs": model.dofs}}, None
+
+
+def test_the_command_runs_the_quick_cases_with_gains_first_on_a_dask_cluster(tmp_path, capsys, monkeypatch, dask_cluster):
+    """`trunk-drake gap-benchmark --quick --gains-first --cluster ADDRESS`: the 20 quick cases, each a job on the
+    cluster's worker with the gains-first search (each case's diagnosis stands in); the settings, rows and summary
+    record the variant."""
+    from trunk_drake.cli import main
+    from trunk_drake.gap import benchmark
+
+    monkeypatch.setattr(benchmark, "_case_job", stand_in_case)
+    assert main(["gap-benchmark", "--quick", "--gains-first", "--cluster", dask_cluster.address, "--json",
+                 "--out", str(tmp_path)]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    rows = [json.loads(line) for line in (tmp_path / "results.jsonl").read_text().splitlines()]
+    assert sorted(r["case"] for r in rows) == sorted(c.name for c in cases(quick=True)) and dask_cluster.jobs_done() == 20
+    assert all(r["job"] == {"gains_first": True, "progress": None} for r in rows)  # no progress.log: the cluster's own disks
+    assert summary["gains_first"] is True and summary["cases"] == 20 and summary["failed"] == []
+    assert json.loads((tmp_path / "settings.json").read_text())["gains_first"] is True
+    assert "search: gains widened first" in (tmp_path / "summary.md").read_text()
+
+
+def test_the_command_runs_its_cases_on_an_osim_model_in_worker_processes(tmp_path, monkeypatch, lumbar_c210_path):
+    """`trunk-drake gap-benchmark --model FILE.osim`: the truth configuration (the reference data's preset) on the
+    file's model, rebuilt by each local worker process that runs a case (each case's diagnosis stands in)."""
+    from trunk_drake.cli import main
+    from trunk_drake.gap import benchmark
+
+    monkeypatch.setattr(benchmark, "_case_job", stand_in_case)
+    assert main(["gap-benchmark", "--case", "no_effect_0", "no_effect_1", "--workers", "2", "--model", str(lumbar_c210_path),
+                 "--out", str(tmp_path)]) == 0
+    rows = [json.loads(line) for line in (tmp_path / "results.jsonl").read_text().splitlines()]
+    assert sorted(r["case"] for r in rows) == ["no_effect_0", "no_effect_1"]
+    assert all(r["worker"]["model"] == "Lumbar_C_210" and r["worker"]["dofs"] == "rhythm" for r in rows)
+    assert os.getpid() not in {r["worker"]["pid"] for r in rows}

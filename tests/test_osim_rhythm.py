@@ -4,6 +4,7 @@ coordinate couplers, checked against OpenSim 4.6 on the same file with the coupl
 strength against OpenSim's with the same load points), and run from the command line."""
 
 import json
+import os
 import re
 
 import numpy as np
@@ -105,3 +106,55 @@ def test_cli_simulate_and_strength_with_the_rhythm(lumbar_c210_path, tmp_path, c
     report = json.loads(capsys.readouterr().out)
     assert report["dofs"] == "rhythm" and "coordinate couplers of Lumbar_C_210" in report["configuration"]
     assert 200.0 < report["results"]["extension"]["max_force_N"] < 300.0
+
+
+def test_cli_stability_and_strength_batch_with_the_rhythm(rhythm, lumbar_c210_path, tmp_path, capsys):
+    """`stability --model` analyses the default preset on the file; `strength-batch --model` runs its cases in worker
+    processes, each with the file's model: as strong as the same case on it here."""
+    from trunk_drake.batch import load_grid, run_case
+
+    assert main(["stability", "--model", str(lumbar_c210_path), "--no-critical", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    model = report["metadata"]["model"]
+    assert model["source"].startswith("Lumbar_C_210.osim") and model["dofs"] == "rhythm"
+    assert report["operating_point"]["coordinates"] == ["lumbar_FE"] and isinstance(report["stable"], bool)
+    grid = tmp_path / "grid.toml"
+    grid.write_text('[grid]\ndirection = ["extension", "flexion"]\ndofs = ["rhythm"]\n')
+    assert main(["strength-batch", str(grid), "--model", str(lumbar_c210_path), "--workers", "2", "--no-progress",
+                 "--out", str(tmp_path / "batch")]) == 0
+    assert json.loads(capsys.readouterr().out)["ok"] == 2
+    rows = [json.loads(line) for line in (tmp_path / "batch" / "results.jsonl").read_text().splitlines()]
+    assert all(int(r["worker"].rsplit(":", 1)[1]) != os.getpid() for r in rows)
+    here = {c["case_id"]: run_case(rhythm, c)["max_force_N"] for c in load_grid(grid)}
+    assert {r["case_id"]: r["max_force_N"] for r in rows} == pytest.approx(here, rel=1e-9)
+
+
+def test_cli_fit_with_the_rhythm(lumbar_c210_path, tmp_path, capsys, monkeypatch):
+    """`fit --model` fits the gains of the data's preset (the default passenger) on the file's model (its rhythm)."""
+    import trunk_drake.optim.fit
+    from trunk_drake.data import models_dir
+
+    fitted, fit = [], trunk_drake.optim.fit.fit_reflex_gains
+
+    def recording(model, *args, **kwargs):
+        fitted.append(model)
+        return fit(model, *args, **kwargs)
+
+    monkeypatch.setattr(trunk_drake.optim.fit, "fit_reflex_gains", recording)
+    trial = models_dir() / "reference" / "trial_1hz_a.csv"
+    assert main(["fit", str(trial), "--t-max", "1", "--max-iterations", "1", "--model", str(lumbar_c210_path), "--json",
+                 "--out", str(tmp_path)]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert [(m.spec.name, m.dofs) for m in fitted] == [("Lumbar_C_210", "rhythm")]
+    assert summary["n_simulations"] > 0 and len(summary["gains"]["kp"]) == 7 and (tmp_path / "gains.toml").exists()
+
+
+def test_cli_reproduce_with_the_file(lumbar_c210_path, tmp_path):
+    """`reproduce --model` runs the thesis' experiments on the file's model (the quick co-activation one here; the
+    thesis' five independent levels); its report names the file."""
+    assert main(["reproduce", "--quick", "--only", "coactivation_fig4_6", "--model", str(lumbar_c210_path),
+                 "--out", str(tmp_path)]) == 0
+    report = json.loads((tmp_path / "report.json").read_text())
+    model = report["metadata"]["model"]
+    assert model["source"].startswith("Lumbar_C_210.osim") and model["dofs"] == "sagittal"
+    assert report["experiments"]["coactivation_fig4_6"]["status"] == "ok"

@@ -2,6 +2,14 @@
 
 import base64
 import re
+import select
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -304,3 +312,49 @@ def test_animate_trial_resimulates_the_data_with_the_given_options(model, tmp_pa
     model_l1, data_l1 = tracks["/passenger/bones/lumbar1"], tracks["/data/bones/lumbar1"]
     assert np.ptp(data_l1[:, 1]) > 0.005  # the trunk moved (m)
     np.testing.assert_allclose(model_l1, data_l1, atol=2e-4)
+
+
+def test_view_serve_answers_on_its_port_until_ctrl_c():
+    """`trunk-drake view --serve --port N` (the console script, as its own process): once it prints its address, the
+    live Meshcat on port N serves the model at rest (its page's scene: every muscle of the --dofs configuration);
+    Ctrl-C stops it with exit status 0 and no traceback."""
+    with socket.socket() as s:  # a free port (released before the server takes it)
+        s.bind(("localhost", 0))
+        port = s.getsockname()[1]
+    script = Path(sys.executable).with_name("trunk-drake")
+    process = subprocess.Popen([str(script), "view", "--serve", "--port", str(port), "--dofs", "rhythm"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline, line = time.monotonic() + 120.0, ""
+        while not line.startswith("Meshcat: open") and time.monotonic() < deadline and process.poll() is None:
+            if select.select([process.stdout], [], [], 1.0)[0]:
+                line = process.stdout.readline()
+        assert line.startswith(f"Meshcat: open http://localhost:{port}"), (line, process.poll())
+        page = urllib.request.urlopen(f"http://localhost:{port}/download", timeout=30).read().decode()
+        objects = [m["path"] for m in scene_messages(page) if m["type"] == "set_object"]
+        assert sorted(p.rsplit("/", 1)[1] for p in objects if "/muscles/" in p) == sorted(td.load_model("rhythm").muscles)
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+    assert process.returncode == 0 and "Traceback" not in err, err
+
+
+def test_the_commands_that_draw_refuse_an_osim_model_before_the_work(lumbar_c210_path, tmp_path, capsys, monkeypatch):
+    """Drawing is implemented for MyoTorso's muscle paths only: `view --model FILE.osim` and `simulate --model FILE.osim
+    --html` give one error line, the latter before it simulates (diagnose's animations: tests/test_commands.py)."""
+    import trunk_drake.simulation
+    from trunk_drake.cli import main
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the work started before the input was checked")
+
+    monkeypatch.setattr(trunk_drake.simulation, "simulate", refuse)
+    for command in (["view", "--dofs", "rhythm", "--out", str(tmp_path / "model.html")],
+                    ["simulate", "--html", "--duration", "0.1", "--out", str(tmp_path / "sim")]):
+        assert main([*command, "--model", str(lumbar_c210_path)]) == 2, command
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and err.startswith("trunk-drake: error: ") and "MyoTorso's" in err, err
+    assert not (tmp_path / "model.html").exists()

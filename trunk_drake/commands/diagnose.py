@@ -56,6 +56,8 @@ def run(args) -> int:
     options = {**experiment.options, **nominal_gains(experiment, args.gains, say=not args.json)}
     noise = np.radians(args.noise_deg) if args.noise_deg is not None else experiment.noise_rad
     model = experiment.model(args.dofs)
+    if not args.no_animation and model.spec.path_semantics == "opensim":  # refused now, not after the diagnosis
+        raise ValueError(f"the animations draw MyoTorso's muscle paths only, not those of {model.spec.name}: give --no-animation")
     diagnosis = diagnose_gap(model, experiment.trials, TrunkOptions(**options), noise=noise,
                              outputs=available_outputs(experiment.trials),
                              candidates=args.candidates, threshold=args.threshold, refine=args.refine,

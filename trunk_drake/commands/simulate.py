@@ -44,6 +44,8 @@ def run(args) -> int:
     from trunk_drake.simulation import simulate
 
     model, options = passenger(args)
+    if args.html and model.spec.path_semantics == "opensim":  # refused now, not after the simulation
+        raise ValueError(f"--html draws MyoTorso's muscle paths only, not those of {model.spec.name}: leave it out")
     result = simulate(
         model, duration=args.duration, bandwidth=args.bandwidth, seed=args.seed, lowpass_hz=args.lowpass_hz, tendon=args.tendon,
         pelvis=args.pelvis, accuracy=args.accuracy, progress=args.progress, options=options,
