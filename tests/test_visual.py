@@ -322,8 +322,10 @@ def test_view_serve_answers_on_its_port_until_ctrl_c():
         s.bind(("localhost", 0))
         port = s.getsockname()[1]
     script = Path(sys.executable).with_name("trunk-drake")
+    # a terminal's Ctrl-C: the child must not inherit an ignored SIGINT (as under `nohup ... &`, how CI may run)
     process = subprocess.Popen([str(script), "view", "--serve", "--port", str(port), "--dofs", "rhythm"],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         deadline, line = time.monotonic() + 120.0, ""
         while not line.startswith("Meshcat: open") and time.monotonic() < deadline and process.poll() is None:
