@@ -93,14 +93,12 @@ def test_dask_local_cluster(tmp_path):
     assert sum(r["status"] == "ok" for r in rows.values()) == 6
 
 
-def test_strength_batch_command_on_a_dask_cluster(tmp_path, capsys):
+def test_strength_batch_command_on_a_dask_cluster(tmp_path, capsys, dask_cluster):
     """`trunk-drake strength-batch GRID --cluster ADDRESS`, the README's command-table form."""
     from trunk_drake.cli import main
 
-    distributed = pytest.importorskip("dask.distributed")
     grid = tmp_path / "grid.toml"
     grid.write_text('[grid]\ndirection = ["extension", "flexion"]\n')
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
-        assert main(["strength-batch", str(grid), "--cluster", cluster.scheduler_address, "--no-progress",
-                     "--out", str(tmp_path / "out")]) == 0
+    assert main(["strength-batch", str(grid), "--cluster", dask_cluster.address, "--no-progress",
+                 "--out", str(tmp_path / "out")]) == 0
     assert json.loads(capsys.readouterr().out)["ok"] == 2
