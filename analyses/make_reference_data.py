@@ -21,6 +21,7 @@ import numpy as np
 from trunk_drake.io.storage import write_csv
 from trunk_drake.model.levels import LUMBAR_LEVELS
 from trunk_drake.presets import load_preset
+from trunk_drake.signals import DEFAULT_FADE_S, DEFAULT_PERIOD_S
 from trunk_drake.simulation import simulate
 
 OUT = Path(__file__).resolve().parents[1] / "models" / "reference"
@@ -98,7 +99,7 @@ def main():
              "# recovered are in truth.toml.", "", "[conditions]"]
     lines += [f"{k} = {_toml(v)}" for k, v in conditions(preset).items()]
     lines += ['feedforward_file = "truth_feedforward.csv"', f"noise_deg = {NOISE_DEG}", f"sampling_hz = {FS}",
-              "period_s = 20.0", "fade_s = 2.0"]
+              f"period_s = {DEFAULT_PERIOD_S}", f"fade_s = {DEFAULT_FADE_S}"]
     (out / "conditions.toml").write_text("\n".join(lines) + "\n")
     lines = ["# Truth reflex gains of the SYNTHETIC reference trials (analyses/make_reference_data.py).",
              f"# Each gain = the {preset.name!r} preset's gain (thesis Table 4.3 x {preset.gain_scale:g}) times a fixed",

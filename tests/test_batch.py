@@ -88,7 +88,6 @@ def test_dask_local_cluster(tmp_path):
         counts = run_batch(cases, tmp_path, cluster=cluster.scheduler_address, progress=False)
     rows = {r["case_id"]: r for r in read_rows(tmp_path)}
     assert counts["ran"] == len(cases) and counts["failed"] == 1, [r["error"] for r in rows.values() if r["error"]]
-    rows = {r["case_id"]: r for r in read_rows(tmp_path)}
     assert rows[FAILING["case_id"]]["status"] == "error"
     assert sum(r["status"] == "ok" for r in rows.values()) == 6
 

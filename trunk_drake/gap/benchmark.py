@@ -36,14 +36,13 @@ from trunk_drake.io.trials import OUTPUT_NAMES
 from trunk_drake.metadata import json_default, source_fingerprint
 from trunk_drake.optim.gains import GAIN_BOUNDS
 from trunk_drake.parallel import WorkerLost, WorkerPool
+from trunk_drake.signals import DEFAULT_FADE_S, DEFAULT_PERIOD_S
 from trunk_drake.thesis import reference_model, reference_truth_options, truth_gains
 
 DEFAULT_NOISE_DEG = 0.1  # motion-capture angle noise (modelling choice: ~0.2 mm marker noise over a few cm)
 GAIN_SPREAD = 0.2  # SD of log(gain factor) of the perturbed nominal gains
 THRESHOLD = 10.0  # held-out dBIC needed to claim an effect (the diagnosis' default)
-FADE_S = 2.0  # fade-in of the multisines, left out of the observability check
 CLASSES = ("single", "pair", "outside", "none")
-PERIOD_S = 20.0  # the multisines' period: 24 s trials with the fades
 
 
 def truth_configuration():
@@ -168,11 +167,11 @@ def _lag_kinematics(trials, lag_s: float):
 def trial_timing(quick: bool = False) -> dict:
     """The "period" and "fade" (s) of the cases' multisines: the benchmark's, or (quick) those of 2 s trials, one period
     of 1 s after a 0.5 s fade-in, for a check that a script runs (`published_case`), not a result."""
-    return {"period": 1.0, "fade": 0.5} if quick else {"period": PERIOD_S, "fade": FADE_S}
+    return {"period": 1.0, "fade": 0.5} if quick else {"period": DEFAULT_PERIOD_S, "fade": DEFAULT_FADE_S}
 
 
-def case_trials(model, case: Case, nominal: TrunkOptions, noise_rad: float, period: float = PERIOD_S,
-                fade: float = FADE_S):
+def case_trials(model, case: Case, nominal: TrunkOptions, noise_rad: float, period: float = DEFAULT_PERIOD_S,
+                fade: float = DEFAULT_FADE_S):
     """The case's multisine designs, truth options, noise-free trials and "measured" trials (noise added)."""
     designs = [("1hz_a", 1.0, case.seed), ("1hz_b", 1.0, case.seed + 1000), ("3hz", 3.0, case.seed + 2000)]
     truth = truth_options(nominal, case)
@@ -252,8 +251,8 @@ def _observability(model, case: Case, nominal: TrunkOptions, designs, clean, noi
     (`signature_chi2`), must beat what a claim needs on the held-out half: the threshold plus
     k ln N per withheld parameter. Otherwise no method can attribute the case."""
     without = clean_trials(model, truth_options(nominal, Case(case.name, "none", (), case.seed)), designs)
-    chi2 = signature_chi2(clean, without, noise_rad, skip=FADE_S)
-    n_heldout = sum(int(np.sum(t.time >= FADE_S)) * (1 + len(t.levels)) for t in clean) / 2
+    chi2 = signature_chi2(clean, without, noise_rad, skip=DEFAULT_FADE_S)
+    n_heldout = sum(int(np.sum(t.time >= DEFAULT_FADE_S)) * (1 + len(t.levels)) for t in clean) / 2
     k = sum(len(values) for _, values in case.effects) or 1
     return {"signature_chi2": chi2, "observable": bool(chi2 / 2 > THRESHOLD + k * np.log(n_heldout))}
 

@@ -56,6 +56,7 @@ from trunk_drake.gap.space import SearchSpace
 from trunk_drake.gap.trials import estimate_noise, half, noise_variance_uncertainty, prepare_trials
 from trunk_drake.io.trials import OUTPUT_NAMES
 from trunk_drake.parallel import WorkerPool
+from trunk_drake.signals import DEFAULT_FADE_S, DEFAULT_PERIOD_S
 
 
 @dataclass
@@ -97,8 +98,8 @@ def progress_lines(progress: bool | Path, stamp):
 
 
 def diagnose_gap(model, trials, options: TrunkOptions | None = None, *, noise: float | None = None, outputs=OUTPUT_NAMES,
-                 candidates=None, threshold: float = 10.0, max_effects: int = 3, refine: int = 3, period: float = 20.0,
-                 fade: float = 2.0, workers: int = 2, cluster: str | None = None, gains_first: bool = False,
+                 candidates=None, threshold: float = 10.0, max_effects: int = 3, refine: int = 3,
+                 period: float = DEFAULT_PERIOD_S, fade: float = DEFAULT_FADE_S, workers: int = 2, cluster: str | None = None, gains_first: bool = False,
                  progress: bool | Path = False, checkpoint: Path | None = None) -> GapDiagnosis:
     """Diagnose the gap between `model` (with `options`, e.g. fitted reflex gains) and `trials`.
 

@@ -7,19 +7,19 @@ import dataclasses
 import numpy as np
 
 from trunk_drake.io.trials import LUMBAR_LEVELS, Trial
-from trunk_drake.signals import DEFAULT_FADE_S, make_multisine
+from trunk_drake.signals import DEFAULT_FADE_S, DEFAULT_PERIOD_S, make_multisine
 from trunk_drake.simulation import simulate
 
 
 def synthetic_trials(model, options, designs, noise_rad: float, seed: int = 0, fs: float = 100.0,
-                     period: float = 20.0) -> list[Trial]:
+                     period: float = DEFAULT_PERIOD_S) -> list[Trial]:
     """Simulate `options` (the truth) on multisines `designs` = [(name, bandwidth_hz, seed), ...]
     and add white noise of `noise_rad` to every angle. Odd harmonic lines only, so the even
     lines in the band reveal nonlinear distortion."""
     return add_noise(clean_trials(model, options, designs, fs, period), noise_rad, seed)
 
 
-def clean_trials(model, options, designs, fs: float = 100.0, period: float = 20.0,
+def clean_trials(model, options, designs, fs: float = 100.0, period: float = DEFAULT_PERIOD_S,
                  fade: float = DEFAULT_FADE_S) -> list[Trial]:
     """Noise-free trials of `options` on the multisines `designs` (see synthetic_trials), faded in and out over `fade` s."""
     trials = []

@@ -7,9 +7,11 @@ import numpy as np
 
 from trunk_drake.io import prepared
 from trunk_drake.io.trials import OUTPUT_NAMES
+from trunk_drake.signals import DEFAULT_FADE_S, DEFAULT_PERIOD_S
 
 
-def prepare_trials(trials, outputs=OUTPUT_NAMES, period: float = 20.0, fade: float = 2.0) -> list[prepared.PreparedTrial]:
+def prepare_trials(trials, outputs=OUTPUT_NAMES, period: float = DEFAULT_PERIOD_S,
+                   fade: float = DEFAULT_FADE_S) -> list[prepared.PreparedTrial]:
     """Check and crop trials to whole periods after the fade-in; clear errors when not possible."""
     out = prepared.prepare_trials(trials, outputs, period=period, steady_start=fade)
     for trial in out:

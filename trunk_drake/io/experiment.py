@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from trunk_drake.signals import DEFAULT_FADE_S, DEFAULT_PERIOD_S
+
 from .trials import Trial, load_trial
 
 TRIAL_SUFFIXES = (".csv", ".sto", ".mot")
@@ -21,8 +23,8 @@ class Experiment:
     trials: list[Trial]
     options: dict = field(default_factory=dict)
     noise_rad: float | None = None  # angle measurement noise from the conditions, if given
-    period: float = 20.0
-    fade: float = 2.0
+    period: float = DEFAULT_PERIOD_S
+    fade: float = DEFAULT_FADE_S
     coactivation_min_activation: float | None = None
     preset: str | None = None  # the passenger preset the data were taken with (models/presets/), if stated
     source: str = ""

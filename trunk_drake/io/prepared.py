@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from trunk_drake.signals.multisine import DEFAULT_FADE_S, DEFAULT_PERIOD_S
 from trunk_drake.signals.sampled import SampledSignal
 
 
@@ -66,8 +67,8 @@ class PreparedTrial:
         return freqs[bins], bins
 
 
-def prepare_trials(trials, outputs=("lumbar_rotation",), noise: float | dict | None = None, period: float | None = 20.0,
-                   steady_start: float = 2.0, lowpass_hz: float | None = None, t_max: float | None = None) -> list[PreparedTrial]:
+def prepare_trials(trials, outputs=("lumbar_rotation",), noise: float | dict | None = None, period: float | None = DEFAULT_PERIOD_S,
+                   steady_start: float = DEFAULT_FADE_S, lowpass_hz: float | None = None, t_max: float | None = None) -> list[PreparedTrial]:
     """Prepared trials from measured ones (trunk_drake.io.Trial): the platform (else pelvis)
     displacement drives the prescribed pelvis motion, `outputs` are compared (total and/or
     per-level angles), optionally only up to `t_max` seconds; `noise` (rad, scalar or per

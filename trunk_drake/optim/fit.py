@@ -28,7 +28,7 @@ from trunk_drake.metadata import json_default
 from trunk_drake.optim.gains import GAIN_BOUNDS, GainLayout
 from trunk_drake.optim.least_squares import finite_difference_jacobian, inverse_or_inf, levenberg_marquardt
 from trunk_drake.parallel import WorkerPool
-from trunk_drake.signals import estimate_frf, vaf
+from trunk_drake.signals import DEFAULT_FADE_S, DEFAULT_PERIOD_S, estimate_frf, vaf
 from trunk_drake.simulation import SimulationError, differentiable_settings, replay_key, simulate, simulate_copies
 
 # Stop when an accepted step lowers the cost by less than this fraction. The cost is a chi-square/2, about half the
@@ -44,7 +44,7 @@ THESIS_START = {"car": 0.1, "settling": 0.001}  # seed Tables 4.2-4.3: initial v
 
 
 def targets_from_trials(trials, outputs=("lumbar_rotation",), noise: float | dict = np.radians(0.1),
-                        lowpass_hz: float | None = None, period: float = 20.0, steady_start: float = 2.0,
+                        lowpass_hz: float | None = None, period: float = DEFAULT_PERIOD_S, steady_start: float = DEFAULT_FADE_S,
                         t_max: float | None = None) -> list[PreparedTrial]:
     """Fit targets from measured trials (see trunk_drake.io.prepared.prepare_trials); `noise`
     (rad, scalar or per output) weights the residuals."""
